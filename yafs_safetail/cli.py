@@ -1,0 +1,48 @@
+"""Command-line plumbing shared by every entry point.
+
+Bad input must end in one line naming the file, the field and what is wrong, a non-zero exit
+and no traceback. Every loader in the package raises a ``ValueError`` subclass for bad input
+and every writer raises ``OSError`` for an unwritable place, so one wrapper turns both into
+that line. Set ``YAFS_SAFETAIL_DEBUG=1`` to see the traceback instead (for bug reports).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Sequence
+
+EXIT_BAD_INPUT = 2
+
+
+def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[str] | None = None) -> int:
+    """Run ``main(argv)`` and turn input errors into one line on stderr and exit code 2.
+
+    Args:
+        main: the entry point; returns an exit code or None for success.
+        argv: the arguments (``None``: ``sys.argv[1:]``).
+
+    Returns:
+        The process exit code.
+    """
+    try:
+        code = main(argv)
+    except (ValueError, OSError) as error:
+        if os.environ.get("YAFS_SAFETAIL_DEBUG"):
+            raise
+        message = " ".join(str(error).split()) or type(error).__name__
+        print(f"error: {message}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("error: interrupted; no partial results were kept", file=sys.stderr)
+        return 130
+    return 0 if code is None else int(code)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``yafs-safetail``: points to the real entry points."""
+    print(
+        "yafs-safetail: run `python experiments/run_usecase.py --uc 1` "
+        "or `python -m yafs_safetail.figures DIR`; see README.md"
+    )
+    return 0
