@@ -1,0 +1,32 @@
+"""The SafeTail learner (§III): actions, reward, target vector, state encoding, FNN, presets.
+
+The pure functions import without TensorFlow; the network and learner (which need Keras) are
+loaded on first access so that importing this package stays cheap.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from yafs_safetail.policy.actions import MAX_SERVERS, action_of, n_actions, subset_of
+from yafs_safetail.policy.reward import reward, target_vector
+
+__all__ = [
+    "MAX_SERVERS",
+    "action_of",
+    "n_actions",
+    "reward",
+    "subset_of",
+    "target_vector",
+]
+
+_LAZY: dict[str, str] = {}
+
+
+def __getattr__(name: str) -> Any:
+    module_name = _LAZY.get(name)
+    if module_name is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    return getattr(importlib.import_module(module_name), name)
