@@ -10,12 +10,17 @@ from typing import Any
 
 from yafs_safetail.policy.actions import MAX_SERVERS, action_of, n_actions, subset_of
 from yafs_safetail.policy.reward import reward, target_vector
+from yafs_safetail.policy.state import StateScales, encode_state, state_dim, state_feature_names
 
 __all__ = [
     "MAX_SERVERS",
+    "StateScales",
     "action_of",
+    "encode_state",
     "n_actions",
     "reward",
+    "state_dim",
+    "state_feature_names",
     "subset_of",
     "target_vector",
 ]

@@ -1,0 +1,160 @@
+"""Encoding of ω^t (Definition 1) into the FNN's input vector.
+
+Layout (float32), for n servers, g entries of Γ and d location coordinates:
+
+* per server i = 0..n-1, six consecutive entries (Ω_i):
+  uplink bps, downlink bps, memory utilisation, CPU utilisation, active users,
+  median propagation s;
+* then P_j: input bytes, estimated output bytes, Γ (g entries);
+* then U: location (d entries), user uplink bps, user downlink bps.
+
+Length 6n + 2 + g + d + 2. Every entry is divided by a fixed reference scale (:class:`StateScales`)
+so that typical values are of order 1; utilisations are already fractions and are kept as is.
+The paper is silent on normalisation; docs/policy.md lists the reference values.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from yafs_safetail.edge.observation import Observation
+
+SERVER_FEATURES = (
+    "uplink_bps",
+    "downlink_bps",
+    "memory_util",
+    "cpu_util",
+    "active_users",
+    "median_propagation_s",
+)
+
+# Typical request sizes (bytes) per use case, only used to bring the size features to O(1):
+# COCO val2017 images average about 160 KB (UC1, UC2); a 5 s clip of 16-bit 16 kHz audio is
+# 160 KB (UC3). Detections are a few KB (UC1); masks (UC2) and denoised audio (UC3) are of the
+# order of the input.
+_USE_CASE_BYTES = {1: (160e3, 4e3), 2: (160e3, 160e3), 3: (160e3, 160e3)}
+
+
+@dataclass(frozen=True, slots=True)
+class StateScales:
+    """Fixed reference scales (SI units) each state entry is divided by.
+
+    Attributes:
+        input_bytes: Reference for Size(I_j), bytes.
+        output_bytes: Reference for eSize(O_j), bytes.
+        gamma: One reference per Γ entry, in Γ's own units; its length must equal the
+            observation's ``gamma`` length.
+        bandwidth_bps: Reference for every bandwidth (servers' and user's); the original code's
+            uncontended link, 20 Mbit/s.
+        active_users: Reference for ℓ_i, the maximum load of a server (Table I: 4).
+        propagation_s: Reference for ρ^μ_i; 1 s keeps seconds as they are.
+        location: Reference for each location coordinate (topology units).
+    """
+
+    input_bytes: float
+    output_bytes: float
+    gamma: tuple[float, ...] = ()
+    bandwidth_bps: float = 20e6
+    active_users: float = 4.0
+    propagation_s: float = 1.0
+    location: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "gamma", tuple(float(x) for x in self.gamma))
+        for name in ("input_bytes", "output_bytes", "bandwidth_bps", "active_users",
+                     "propagation_s", "location"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"StateScales.{name} must be finite and > 0, got {value!r}")
+        for i, value in enumerate(self.gamma):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"StateScales.gamma[{i}] must be finite and > 0, got {value!r}")
+
+    @classmethod
+    def for_use_case(cls, use_case: int, gamma: Sequence[float] = ()) -> StateScales:
+        """Default scales for a use case (1, 2 or 3).
+
+        Args:
+            use_case: 1 (object detection), 2 (instance segmentation), 3 (noise removal).
+            gamma: One reference per Γ entry the edge model puts in the observation (the use
+                case's definition knows what Γ holds, e.g. a clip duration in seconds).
+
+        Raises:
+            ValueError: unknown use case.
+        """
+        if use_case not in _USE_CASE_BYTES:
+            raise ValueError(f"use_case must be one of {sorted(_USE_CASE_BYTES)}, got {use_case!r}")
+        input_bytes, output_bytes = _USE_CASE_BYTES[use_case]
+        return cls(input_bytes=input_bytes, output_bytes=output_bytes, gamma=tuple(gamma))
+
+
+def state_dim(n_servers: int, n_gamma: int, n_location: int) -> int:
+    """Length of the encoded state: 6n + 2 + g + d + 2."""
+    return 6 * n_servers + 2 + n_gamma + n_location + 2
+
+
+def state_feature_names(n_servers: int, n_gamma: int, n_location: int) -> list[str]:
+    """Name of every entry of the encoded state, in order (for logs and documentation)."""
+    names = [f"server{i}_{f}" for i in range(n_servers) for f in SERVER_FEATURES]
+    names += ["input_bytes", "est_output_bytes"] + [f"gamma{k}" for k in range(n_gamma)]
+    names += [f"location{k}" for k in range(n_location)]
+    names += ["user_uplink_bps", "user_downlink_bps"]
+    return names
+
+
+@lru_cache(maxsize=64)
+def _inverse_scales(scales: StateScales, n: int, g: int, d: int) -> np.ndarray:
+    if g != len(scales.gamma):
+        raise ValueError(
+            f"observation has {g} Γ entries but StateScales.gamma has {len(scales.gamma)}"
+        )
+    per_server = [scales.bandwidth_bps, scales.bandwidth_bps, 1.0, 1.0, scales.active_users,
+                  scales.propagation_s]
+    ref = per_server * n + [scales.input_bytes, scales.output_bytes, *scales.gamma]
+    ref += [scales.location] * d + [scales.bandwidth_bps, scales.bandwidth_bps]
+    inverse = (1.0 / np.asarray(ref, dtype=np.float64)).astype(np.float32)
+    inverse.setflags(write=False)
+    return inverse
+
+
+def encode_state(obs: Observation, scales: StateScales) -> np.ndarray:
+    """Encode ω^t as the FNN input (layout in the module docstring).
+
+    Args:
+        obs: The observation at the moment the request is issued.
+        scales: Reference scales; ``len(scales.gamma)`` must equal ``len(obs.gamma)``.
+
+    Returns:
+        A new float32 vector of length ``state_dim(n, g, d)``.
+
+    Raises:
+        ValueError: Γ length mismatch between the observation and the scales.
+    """
+    n = obs.server_uplink_bps.shape[0]
+    g = obs.gamma.shape[0]
+    d = obs.user_location.shape[0]
+    inverse = _inverse_scales(scales, n, g, d)
+    out = np.empty(inverse.shape[0], dtype=np.float32)
+    six_n = 6 * n
+    block = out[:six_n].reshape(n, 6)
+    block[:, 0] = obs.server_uplink_bps
+    block[:, 1] = obs.server_downlink_bps
+    block[:, 2] = obs.server_memory_util
+    block[:, 3] = obs.server_cpu_util
+    block[:, 4] = obs.server_active_users
+    block[:, 5] = obs.server_median_propagation_s
+    out[six_n] = obs.input_bytes
+    out[six_n + 1] = obs.est_output_bytes
+    k = six_n + 2
+    out[k:k + g] = obs.gamma
+    k += g
+    out[k:k + d] = obs.user_location
+    out[k + d] = obs.user_uplink_bps
+    out[k + d + 1] = obs.user_downlink_bps
+    out *= inverse
+    return out
