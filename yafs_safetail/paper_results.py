@@ -1,0 +1,151 @@
+"""The paper's published headline results, as data.
+
+Every entry is copied from the "Published headline results" table of
+``/work/shared/spec/facts.md``, which restates §V of the paper (use cases 1, 2 and 3). Nothing
+here is measured by this project.
+
+The paper states its ratios in two directions: "Oracle ... speed-up in median latency of 1.08x
+compared to SafeTail" (Oracle's speed-up over SafeTail) and "SafeTail experienced speed-ups ...
+of 0.93x ... compared to Oracle" (SafeTail's speed-up over Oracle). Each entry keeps the
+direction in which the paper states it; :func:`paper_speedup` converts to whichever direction
+is asked for (a speed-up of A over B is ``latency(B) / latency(A)``, so the two directions are
+reciprocals).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+PERCENTILE_NAMES: dict[int, str] = {50: "median", 90: "p90", 95: "p95", 99: "p99"}
+
+
+@dataclass(frozen=True, slots=True)
+class PaperRatio:
+    """One ratio stated in the paper.
+
+    Attributes:
+        use_case: 1, 2 or 3.
+        method: the method whose speed-up is stated ("Oracle", "SafeTail", ...).
+        reference: the method it is compared with.
+        percentile: 50, 90, 95 or 99.
+        speedup: ``latency(reference) / latency(method)`` as the paper states it
+            (> 1: ``method`` is faster).
+        stated: the statement as facts.md words it, for reports.
+    """
+
+    use_case: int
+    method: str
+    reference: str
+    percentile: int
+    speedup: float
+    stated: str
+
+
+def _ratios(
+    use_case: int, method: str, reference: str, values: dict[int, float], stated: str
+) -> list[PaperRatio]:
+    return [
+        PaperRatio(use_case, method, reference, percentile, value, stated)
+        for percentile, value in values.items()
+    ]
+
+
+PAPER_RATIOS: tuple[PaperRatio, ...] = tuple(
+    # Use case 1 (facts.md row 1).
+    _ratios(1, "Oracle", "SafeTail", {50: 1.08}, "Oracle median 1.08x faster than SafeTail")
+    + _ratios(
+        1, "SafeTail", "Oracle", {90: 0.93, 95: 0.92, 99: 0.79},
+        "SafeTail vs Oracle at p90/p95/p99: 0.93x / 0.92x / 0.79x",
+    )
+    + _ratios(
+        1, "SafeTail", "Rand-1", {50: 1.72, 90: 2.64, 95: 2.62, 99: 2.24},
+        "SafeTail median 1.72x, tails 2.64/2.62/2.24x faster than Rand-1",
+    )
+    + _ratios(
+        1, "SafeTail", "MinLoad-1", {50: 1.11, 90: 1.37, 95: 1.66, 99: 1.69},
+        "SafeTail median 1.11x, tails 1.37/1.66/1.69x faster than MinLoad-1",
+    )
+    + _ratios(
+        1, "SafeTail", "MinProp-1", {50: 1.13, 90: 1.63, 95: 1.99, 99: 1.89},
+        "SafeTail median 1.13x, tails 1.63/1.99/1.89x faster than MinProp-1",
+    )
+    # Use case 2 (facts.md row 2): baseline latency as a multiple of SafeTail's, which is
+    # SafeTail's speed-up over that baseline.
+    + _ratios(2, "SafeTail", "Rand-3", {50: 0.97}, "Rand-3 median 0.97x of SafeTail")
+    + _ratios(2, "SafeTail", "MinLoad-3", {90: 0.90}, "MinLoad-3 p90 0.90x of SafeTail")
+    + _ratios(2, "SafeTail", "MinProp-3", {50: 0.98}, "MinProp-3 median 0.98x of SafeTail")
+    # Use case 3 (facts.md row 3).
+    + _ratios(
+        3, "Oracle", "SafeTail", {50: 1.50, 90: 1.14, 95: 1.12, 99: 1.00},
+        "Oracle faster by 1.50x / 1.14x / 1.12x / 1.00x (median / p90 / p95 / p99)",
+    )
+)
+
+
+@dataclass(frozen=True, slots=True)
+class PaperClaim:
+    """A qualitative statement of the paper that a run can be checked against.
+
+    Attributes:
+        use_case: 1, 2 or 3.
+        key: a stable identifier; ``results.check_claims`` knows how to test each key.
+        text: the statement, with this project's reading of it where the paper is vague.
+    """
+
+    use_case: int
+    key: str
+    text: str
+
+
+PAPER_CLAIMS: tuple[PaperClaim, ...] = (
+    PaperClaim(1, "below_target_all",
+               "SafeTail below the average target latency at median, p90, p95 and p99"),
+    PaperClaim(1, "beats_x23_all",
+               "SafeTail faster than Rand/MinLoad/MinProp with x = 2, 3 at every percentile"),
+    PaperClaim(1, "servers_1_to_3", "SafeTail uses 1 to 3 servers (test phase)"),
+    PaperClaim(2, "median_below_target", "SafeTail median below the average target latency"),
+    PaperClaim(2, "oracle_tail_above_target",
+               "Even Oracle's p99 exceeds the average target latency"),
+    PaperClaim(2, "mean_servers_2_to_3",
+               "SafeTail uses 2 to 3 servers on average (mean servers per request in [2, 3])"),
+    PaperClaim(3, "mostly_1_to_2_servers",
+               "SafeTail uses mostly 1 to 2 servers (more than half the test requests)"),
+    PaperClaim(3, "baseline_better_p50_p90",
+               "Some baseline is faster than SafeTail at median and p90"),
+    PaperClaim(3, "safetail_better_p95_p99",
+               "SafeTail faster than every Rand/MinLoad/MinProp baseline at p95 and p99"),
+)
+
+
+def paper_speedup(use_case: int, method: str, reference: str, percentile: int) -> float | None:
+    """The paper's speed-up of ``method`` over ``reference``, converting direction if needed.
+
+    Args:
+        use_case: 1, 2 or 3.
+        method: e.g. "Oracle" or "SafeTail".
+        reference: e.g. "SafeTail" or "Rand-1".
+        percentile: 50, 90, 95 or 99.
+
+    Returns:
+        ``latency(reference) / latency(method)`` as the paper states it, or None when the paper
+        states no such number.
+    """
+    for ratio in PAPER_RATIOS:
+        if (ratio.use_case, ratio.percentile) != (use_case, percentile):
+            continue
+        if (ratio.method, ratio.reference) == (method, reference):
+            return ratio.speedup
+        if (ratio.method, ratio.reference) == (reference, method):
+            return 1.0 / ratio.speedup
+    return None
+
+
+def paper_statement(use_case: int, method: str, reference: str, percentile: int) -> str | None:
+    """The wording of the paper's statement behind :func:`paper_speedup`, or None."""
+    for ratio in PAPER_RATIOS:
+        if (ratio.use_case, ratio.percentile) == (use_case, percentile) and {
+            ratio.method,
+            ratio.reference,
+        } == {method, reference}:
+            return ratio.stated
+    return None
