@@ -1,0 +1,262 @@
+"""EdgeModel: the SafeTail edge world plugged into the core's delay hooks.
+
+One :class:`EdgeModel` per simulation run: it holds the run's mutable state (the project's
+own copies running on each server, each copy's Eq. 1 terms) on top of a shared, read-only
+:class:`~yafs_safetail.edge.world.EdgeWorld`.
+
+A copy of the request of step *t* sent to server *i* travels user -> access point -> server
+and back. The hooks charge Eq. 1 term by term:
+
+====================  ==============================================================
+hop / service         delay
+====================  ==============================================================
+user -> AP            input uploading, Size(I) / min(λ^d_i, Λ^u)
+AP -> server          ρ_i + input downloading (the same transfer time again)
+service               compute time at k = ℓ_i + 1 processes (refused when ℓ_i >= max load)
+server -> AP          output uploading, Size(O) / min(λ^u_i, Λ^d), + ρ_i
+AP -> user            output downloading (the same transfer time again)
+====================  ==============================================================
+
+The bandwidths are fixed when the copy leaves the user, from the pool of the server's
+contention level min(ℓ_i, 4) (ℓ_i = active users already on the server: the WiFi is shared
+equally among them), so the input and output transfers of one copy use one bandwidth draw.
+``uses_link_queues`` is False and ``concurrent`` is True: in the paper's model copies never
+wait for each other (Eq. 1 has no waiting term; assumption ii).
+
+Request -> step: the n-th request the user emits is step n of the world (its request, trace
+row and draws), whichever selection routes it; with the default one request per
+``step_interval_s`` this is also the request's minute in the load trace.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from yafs_safetail.edge.latency import CopyLatency
+from yafs_safetail.edge.observation import Observation
+from yafs_safetail.edge.world import EdgeWorld
+from yafs_safetail.yafs.application import Application, Message
+
+if TYPE_CHECKING:
+    from yafs_safetail.yafs.core import Sim
+
+#: Module and message names of the edge application (see :func:`edge_application`).
+SOURCE_MODULE = "User"
+SINK_MODULE = "UserSink"
+REQUEST_MESSAGE = "Request"
+REPLY_MESSAGE = "Reply"
+
+
+def edge_application(app_name: str, service_module: str) -> Application:
+    """The SafeTail application as a YAFS :class:`Application`.
+
+    The user's source emits ``Request`` to ``service_module``; the service answers with
+    ``Reply`` to the user's sink. Message bytes and instructions are YAFS placeholders: the
+    edge model computes every delay from the world (sizes, bandwidths, compute model).
+    """
+    app = Application(name=app_name)
+    app.set_modules(
+        [
+            {SOURCE_MODULE: {"Type": Application.TYPE_SOURCE}},
+            {service_module: {"RAM": 1, "Type": Application.TYPE_MODULE}},
+            {SINK_MODULE: {"Type": Application.TYPE_SINK}},
+        ]
+    )
+    request = Message(REQUEST_MESSAGE, SOURCE_MODULE, service_module, instructions=0, bytes=0)
+    reply = Message(REPLY_MESSAGE, service_module, SINK_MODULE, instructions=0, bytes=0)
+    app.add_source_messages(request)
+    app.add_service_module(service_module, request, reply)
+    return app
+
+
+class EdgeModelError(RuntimeError):
+    """The simulation went beyond what the world was drawn for, or routed off the topology."""
+
+
+class _CopyState:
+    """The Eq. 1 terms of one copy, filled in as it travels."""
+
+    __slots__ = ("step", "server", "input_s", "output_s", "rtt_s", "compute_s", "refused")
+
+    def __init__(self, step: int, server: int, input_s: float, output_s: float, rtt_s: float) -> None:
+        self.step = step
+        self.server = server
+        self.input_s = input_s
+        self.output_s = output_s
+        self.rtt_s = rtt_s
+        self.compute_s = float("nan")
+        self.refused = False
+
+
+class EdgeModel:
+    """The core's :class:`LinkDelay` and :class:`ServiceModel` for the SafeTail edge world.
+
+    Args:
+        world: the phase's pre-drawn world (shared between methods; read-only).
+
+    Attributes:
+        world: the world.
+        n_servers: number of edge servers.
+        server_nodes: edge server node ids in server index order.
+        user_node: the user's node id.
+        access_point_node: the access point's node id.
+        app_name: the application name (from the placement).
+        service_module: the service module name (from the placement).
+        fallback_latency_s: the on-device fallback latency of the use case.
+        requests_seen: number of requests mapped to steps so far.
+    """
+
+    uses_link_queues = False
+    concurrent = True
+
+    def __init__(self, world: EdgeWorld) -> None:
+        self.world = world
+        scenario = world.scenario
+        self.n_servers = scenario.n_servers
+        self.server_nodes: tuple[Any, ...] = scenario.server_nodes
+        self.user_node = scenario.user_node
+        self.access_point_node = scenario.access_point_node
+        self.app_name = scenario.app_name
+        self.service_module = scenario.module_name
+        self.fallback_latency_s = world.fallback_latency_s
+        self.requests_seen = 0
+        self._server_of_node = {node: index for index, node in enumerate(self.server_nodes)}
+        self._own_running = np.zeros(self.n_servers, dtype=np.int64)
+        self._step_of_request: dict[Any, int] = {}
+        self._copies: dict[tuple[Any, int], _CopyState] = {}
+        self._request_paths = [
+            [self.user_node, self.access_point_node, node] for node in self.server_nodes
+        ]
+        self._reply_paths = [
+            [node, self.access_point_node, self.user_node] for node in self.server_nodes
+        ]
+        # Plain lists for the per-hop lookups (NumPy scalar indexing is slower).
+        self._background = world.background_users.tolist()
+        self._input_transfer = world.input_transfer_by_level_s
+        self._output_transfer = world.output_transfer_by_level_s
+        self._rtt = world.rtt_s.tolist()
+        self._levels = world.n_contention_levels
+        self._max_load = world.max_load
+
+    # ------------------------------------------------------------------ requests and steps
+    def begin_request(self, request_id: Any) -> int:
+        """The step of request ``request_id``; the first call for an id assigns the next step.
+
+        Raises:
+            EdgeModelError: more requests than the world has steps.
+        """
+        step = self._step_of_request.get(request_id)
+        if step is None:
+            step = self.requests_seen
+            if step >= self.world.n_steps:
+                raise EdgeModelError(
+                    f"request {request_id!r} would be step {step}, but the world was drawn for "
+                    f"{self.world.n_steps} steps; build it with more steps or run the Sim shorter"
+                )
+            self._step_of_request[request_id] = step
+            self.requests_seen += 1
+        return step
+
+    def step_of(self, request_id: Any) -> int:
+        """The step of a request already seen (KeyError otherwise)."""
+        return self._step_of_request[request_id]
+
+    def observe(self, step: int) -> Observation:
+        """ω^t: the servers' state when step ``step``'s request is issued (now)."""
+        return self.world.observation(step, self.world.background_users[step] + self._own_running)
+
+    def target_latency_s(self, step: int) -> float:
+        """τ of Eq. 4 for step ``step``'s request."""
+        return float(self.world.target_s[step])
+
+    # ------------------------------------------------------------------ routing helpers
+    def server_index(self, node: Any) -> int:
+        """Server index of an edge server node id."""
+        return self._server_of_node[node]
+
+    def request_paths(self, subset: tuple[int, ...]) -> list[list[Any]]:
+        """YAFS paths user -> AP -> server for each server index in ``subset``."""
+        return [list(self._request_paths[i]) for i in subset]
+
+    def reply_path(self, server_node: Any) -> list[Any]:
+        """YAFS path server -> AP -> user for a reply leaving ``server_node``."""
+        return list(self._reply_paths[self._server_of_node[server_node]])
+
+    # ------------------------------------------------------------------ Eq. 1 records
+    def copy_breakdown(self, request_id: Any, server: int) -> CopyLatency | None:
+        """The Eq. 1 terms of the copy of ``request_id`` sent to server index ``server``.
+
+        Returns None for a copy that was refused or never sent.
+        """
+        state = self._copies.get((request_id, server))
+        if state is None or state.refused:
+            return None
+        return CopyLatency(
+            input_upload_s=state.input_s,
+            input_download_s=state.input_s,
+            input_propagation_s=state.rtt_s,
+            compute_s=state.compute_s,
+            output_upload_s=state.output_s,
+            output_propagation_s=state.rtt_s,
+            output_download_s=state.output_s,
+        )
+
+    def forget_request(self, request_id: Any) -> None:
+        """Drop the per-copy records of a completed request (keeps memory flat on long runs)."""
+        for server in range(self.n_servers):
+            self._copies.pop((request_id, server), None)
+        self._step_of_request.pop(request_id, None)
+
+    # ------------------------------------------------------------------ LinkDelay hook
+    def _dispatch(self, message: Message, server: int) -> _CopyState:
+        step = self.begin_request(message.id)
+        others = self._background[step][server] + int(self._own_running[server])
+        level = others if others < self._levels else self._levels - 1
+        state = _CopyState(
+            step,
+            server,
+            float(self._input_transfer[step, server, level]),
+            float(self._output_transfer[step, server, level]),
+            self._rtt[step][server],
+        )
+        self._copies[(message.id, server)] = state
+        return state
+
+    def hop_delay_s(self, sim: Sim, message: Message, src_node: Any, dst_node: Any) -> float:
+        """Eq. 1's term for this hop (see the module docstring)."""
+        if src_node == self.user_node:
+            return self._dispatch(message, self._server_of_node[message.copy_dst_node]).input_s
+        if src_node == self.access_point_node:
+            if dst_node == self.user_node:
+                server = self._server_of_node[message.copy_dst_node]
+                return self._copies[(message.id, server)].output_s
+            state = self._copies[(message.id, self._server_of_node[dst_node])]
+            return state.rtt_s + state.input_s
+        server = self._server_of_node.get(src_node)
+        if server is None or dst_node != self.access_point_node:
+            raise EdgeModelError(f"hop {src_node!r} -> {dst_node!r} is not on a user-AP-server path")
+        state = self._copies[(message.id, server)]
+        return state.output_s + state.rtt_s
+
+    # ------------------------------------------------------------------ ServiceModel hooks
+    def admit(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> bool:
+        """Refuse when the server already has ``max_load`` active users; else start a process."""
+        server = self._server_of_node[node]
+        state = self._copies[(message.id, server)]
+        active = self._background[state.step][server] + int(self._own_running[server])
+        if active >= self._max_load:
+            state.refused = True
+            return False
+        self._own_running[server] += 1
+        state.compute_s = float(self.world.compute_by_processes_s[state.step, server, active])
+        return True
+
+    def service_time_s(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> float:
+        """The compute time fixed at admission (k = ℓ_i + 1 processes)."""
+        return self._copies[(message.id, self._server_of_node[node])].compute_s
+
+    def release(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> None:
+        """The copy's process ends: one active user fewer on the server."""
+        self._own_running[self._server_of_node[node]] -= 1

@@ -1,0 +1,62 @@
+"""EdgePopulation: the user issuing one request per step, and the sink that keeps its replies."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from yafs_safetail.edge.model import REQUEST_MESSAGE, SINK_MODULE
+from yafs_safetail.yafs.distribution import Distribution, deterministicDistributionStartPoint
+from yafs_safetail.yafs.population import Population
+
+if TYPE_CHECKING:
+    from yafs_safetail.yafs.core import Sim
+
+#: Simulated time between two requests: one load-trace row (one minute) per step.
+DEFAULT_STEP_INTERVAL_S = 60.0
+
+
+class EdgePopulation(Population):
+    """A YAFS :class:`Population`: the user's source and sink on the user node.
+
+    By default the user emits one request every ``step_interval_s`` starting at time 0, so
+    step *t*'s request leaves at ``t * step_interval_s`` and ``Sim.run(until=n *
+    step_interval_s)`` runs exactly *n* requests (every copy finishes well within a minute).
+    Any YAFS distribution can replace the default.
+
+    Args:
+        user_node: the user's node id (``EdgeScenario.user_node``).
+        step_interval_s: time between requests for the default distribution.
+        distribution: a YAFS distribution of inter-arrival times (overrides the default).
+        name: the population's name.
+    """
+
+    def __init__(
+        self,
+        user_node: Any,
+        step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
+        distribution: Distribution | None = None,
+        name: str = "EdgePopulation",
+    ) -> None:
+        super().__init__(name)
+        if not step_interval_s > 0:
+            raise ValueError(f"step_interval_s: must be positive, got {step_interval_s!r}")
+        self.user_node = user_node
+        self.step_interval_s = float(step_interval_s)
+        self.distribution = distribution
+        self.source_des: int | None = None
+        self.sink_des: int | None = None
+
+    def until_s(self, n_requests: int) -> float:
+        """The ``Sim.run(until=...)`` that runs ``n_requests`` requests with the default
+        one-per-step arrivals."""
+        return n_requests * self.step_interval_s
+
+    def initial_allocation(self, sim: Sim, app_name: Any) -> None:
+        app = sim.apps[app_name]
+        self.sink_des = sim.deploy_sink(app_name, node=self.user_node, module=SINK_MODULE)
+        self.source_des = sim.deploy_source(
+            app_name, id_node=self.user_node, msg=app.get_message(REQUEST_MESSAGE),
+            distribution=self.distribution or deterministicDistributionStartPoint(
+                0.0, self.step_interval_s, name="EdgeStep"
+            ),
+        )
