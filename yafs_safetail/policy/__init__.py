@@ -6,14 +6,18 @@ loaded on first access so that importing this package stays cheap.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from yafs_safetail.policy.actions import MAX_SERVERS, action_of, n_actions, subset_of
 from yafs_safetail.policy.reward import reward, target_vector
 from yafs_safetail.policy.state import StateScales, encode_state, state_dim, state_feature_names
 
+if TYPE_CHECKING:
+    from yafs_safetail.policy.learner import SafeTailLearner
+
 __all__ = [
     "MAX_SERVERS",
+    "SafeTailLearner",
     "StateScales",
     "action_of",
     "encode_state",
@@ -25,7 +29,7 @@ __all__ = [
     "target_vector",
 ]
 
-_LAZY: dict[str, str] = {}
+_LAZY = {"SafeTailLearner": "yafs_safetail.policy.learner"}
 
 
 def __getattr__(name: str) -> Any:

@@ -1,0 +1,184 @@
+"""Does the learner learn? A synthetic contextual bandit where the best subset depends on ω.
+
+Toy world (n = 5): each server has 0..4 active users (uniform, independent per step); a copy
+on server i takes 0.3 + 0.2·ℓ_i s plus N(0, 0.02 s) noise; τ = 0.55 s. So a server with at most
+one user meets τ alone (Eq. 5 case 2: reward 0), and when none does, only the full set earns 0
+(case 3). The other state entries are random noise. The best action therefore depends on the
+state; a uniformly random policy is optimal for about 6 % of states.
+
+Run as a script for the measurements quoted in docs/deviations.md (full step budgets)::
+
+    python tests/test_policy_learning.py
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+import pytest
+
+from yafs_safetail.edge.observation import Observation
+from yafs_safetail.policy import (
+    SafeTailLearner,
+    StateScales,
+    encode_state,
+    reward,
+    state_dim,
+    subset_of,
+)
+from yafs_safetail.policy.presets import LearnerConfig, get_preset
+
+N_SERVERS = 5
+TARGET_S = 0.55
+SCALES = StateScales.for_use_case(1)
+STATE_DIM = state_dim(N_SERVERS, 0, 2)
+
+
+def toy_observation(rng: np.random.Generator) -> Observation:
+    n = N_SERVERS
+    return Observation(
+        server_uplink_bps=rng.uniform(2e6, 20e6, n),
+        server_downlink_bps=rng.uniform(2e6, 20e6, n),
+        server_memory_util=rng.uniform(0.0, 1.0, n),
+        server_cpu_util=rng.uniform(0.0, 1.0, n),
+        server_active_users=rng.integers(0, 5, n),
+        server_median_propagation_s=rng.uniform(0.03, 0.7, n),
+        input_bytes=rng.uniform(50e3, 300e3),
+        est_output_bytes=rng.uniform(1e3, 8e3),
+        gamma=np.empty(0),
+        user_location=rng.uniform(-1.0, 1.0, 2),
+        user_uplink_bps=rng.uniform(5e6, 20e6),
+        user_downlink_bps=rng.uniform(5e6, 20e6),
+    )
+
+
+def toy_latency_s(obs: Observation, subset: tuple[int, ...], rng: np.random.Generator) -> float:
+    users = obs.server_active_users[list(subset)]
+    noise = rng.normal(0.0, 0.02, len(subset))
+    return float(np.max([0.0, np.min(0.3 + 0.2 * users + noise)]))
+
+
+def is_optimal(obs: Observation, action: int) -> bool:
+    """Noise-free: does this action earn the maximum reward (0) for this state?"""
+    subset = subset_of(action, N_SERVERS)
+    fast = obs.server_active_users <= 1
+    if fast.any():
+        return len(subset) == 1 and bool(fast[subset[0]])
+    return len(subset) == N_SERVERS
+
+
+def flat_weights(learner: SafeTailLearner) -> np.ndarray:
+    return np.concatenate([w.ravel() for w in learner.model.get_weights()])
+
+
+@dataclasses.dataclass
+class ToyResult:
+    initial_optimal_fraction: float
+    optimal_fraction: float
+    mean_greedy_reward: float
+    relative_weight_change: float
+    final_epsilon: float
+    n_rounds: int
+    wall_s: float
+
+
+def evaluate_greedy(learner: SafeTailLearner, seed: int, n_eval: int) -> tuple[float, float]:
+    """(fraction of fresh states where the greedy action is optimal, its mean reward)."""
+    eval_rng = np.random.default_rng(seed + 2_000_003)
+    optimal = 0
+    rewards = []
+    for _ in range(n_eval):
+        obs = toy_observation(eval_rng)
+        action = learner.act(encode_state(obs, SCALES), explore=False)
+        subset = subset_of(action, N_SERVERS)
+        optimal += is_optimal(obs, action)
+        latency_s = toy_latency_s(obs, subset, eval_rng)
+        rewards.append(reward(latency_s, TARGET_S, len(subset), N_SERVERS, learner.config.delta))
+    return optimal / n_eval, float(np.mean(rewards))
+
+
+def run_toy(config: LearnerConfig, seed: int, n_eval: int = 2000) -> ToyResult:
+    """Train for ``config.train_steps`` steps; evaluate the greedy policy before and after."""
+    start = time.perf_counter()
+    learner = SafeTailLearner(N_SERVERS, STATE_DIM, config, seed)
+    w0 = flat_weights(learner)
+    initial_fraction, _ = evaluate_greedy(learner, seed, n_eval)
+    env_rng = np.random.default_rng(seed + 1_000_003)
+    for _ in range(config.train_steps):
+        obs = toy_observation(env_rng)
+        state = encode_state(obs, SCALES)
+        action = learner.act(state, explore=True)
+        subset = subset_of(action, N_SERVERS)
+        latency_s = toy_latency_s(obs, subset, env_rng)
+        learner.observe(state, action, reward(latency_s, TARGET_S, len(subset), N_SERVERS, config.delta))
+    w1 = flat_weights(learner)
+    fraction, mean_reward = evaluate_greedy(learner, seed, n_eval)
+    return ToyResult(
+        initial_optimal_fraction=initial_fraction,
+        optimal_fraction=fraction,
+        mean_greedy_reward=mean_reward,
+        relative_weight_change=float(np.linalg.norm(w1 - w0) / np.linalg.norm(w0)),
+        final_epsilon=learner.epsilon,
+        n_rounds=learner.n_training_rounds,
+        wall_s=time.perf_counter() - start,
+    )
+
+
+def random_policy_optimal_fraction(n_eval: int = 20000, seed: int = 7) -> float:
+    rng = np.random.default_rng(seed)
+    hits = 0
+    for _ in range(n_eval):
+        hits += is_optimal(toy_observation(rng), int(rng.integers((1 << N_SERVERS) - 1)))
+    return hits / n_eval
+
+
+def test_random_policy_baseline_is_low() -> None:
+    assert random_policy_optimal_fraction(4000) < 0.1
+
+
+def test_tuned_learns_on_a_small_budget() -> None:
+    result = run_toy(get_preset("tuned", 1, train_steps=2560), seed=3, n_eval=500)
+    assert result.final_epsilon == pytest.approx(0.01)
+    # Best state-independent action (one fixed server) is optimal for 40 % of states.
+    assert result.optimal_fraction > 0.6
+    assert result.optimal_fraction > result.initial_optimal_fraction + 0.2
+
+
+def test_paper_barely_moves_on_a_small_budget() -> None:
+    result = run_toy(get_preset("paper", 1, train_steps=1280), seed=3, n_eval=300)
+    assert result.n_rounds == 10
+    assert result.final_epsilon > 0.9999
+    assert result.relative_weight_change < 1e-3
+    assert abs(result.optimal_fraction - result.initial_optimal_fraction) < 0.05
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("use_case", [1, 2, 3])
+def test_full_budget_tuned_learns_paper_does_not(use_case: int) -> None:
+    tuned = run_toy(get_preset("tuned", use_case), seed=11)
+    paper = run_toy(get_preset("paper", use_case), seed=11)
+    assert tuned.optimal_fraction > 0.8
+    assert paper.relative_weight_change < 1e-3
+    assert abs(paper.optimal_fraction - paper.initial_optimal_fraction) < 0.05
+
+
+def main() -> None:
+    print(f"random policy: optimal for {random_policy_optimal_fraction():.3f} of states")
+    print("preset uc steps rounds final_eps optimal_before optimal_after mean_greedy_reward "
+          "rel_weight_change wall_s")
+    for use_case in (1, 2, 3):
+        for name in ("paper", "tuned"):
+            config = get_preset(name, use_case)
+            r = run_toy(config, seed=11)
+            print(
+                f"{name:6s} {use_case} {config.train_steps:5d} {r.n_rounds:3d} "
+                f"{r.final_epsilon:.4f} {r.initial_optimal_fraction:.3f} {r.optimal_fraction:.3f} "
+                f"{r.mean_greedy_reward:.5f} "
+                f"{r.relative_weight_change:.2e} {r.wall_s:.1f}"
+            )
+
+
+if __name__ == "__main__":
+    main()

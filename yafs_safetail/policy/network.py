@@ -1,0 +1,124 @@
+"""The Keras FNN of §III, process-wide determinism, and the NumPy fast path for decisions."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from yafs_safetail.policy.presets import LearnerConfig
+
+
+def enable_determinism(seed: int) -> None:
+    """Seed Keras/TensorFlow and turn TensorFlow's op determinism on.
+
+    Both are process-global: ``keras.utils.set_random_seed`` also seeds Python's ``random``
+    and NumPy's legacy global generator (this project never draws from either; the learner's
+    own randomness comes from explicit generators and explicit initializer seeds), and op
+    determinism, once on, stays on for the whole process (TensorFlow offers no way back). It
+    is safe to call again with another seed: a learner's results do not depend on it.
+    """
+    import keras
+    import tensorflow as tf
+
+    keras.utils.set_random_seed(int(seed))
+    tf.config.experimental.enable_op_determinism()
+
+
+def build_network(
+    state_dim: int, n_actions: int, config: LearnerConfig, init_seed: int
+) -> object:
+    """Build and compile the policy FNN.
+
+    ``state_dim`` inputs, one ReLU Dense layer per entry of ``config.hidden_widths``, a softmax
+    Dense layer over ``n_actions``, categorical cross-entropy, Adam(``config.learning_rate``).
+    Each layer's Glorot-uniform initializer gets its own seed derived from ``init_seed``, so
+    the initial weights do not depend on any global random state.
+
+    Returns:
+        The compiled ``keras.Model``.
+    """
+    import keras
+
+    layer_seeds = np.random.SeedSequence(init_seed).generate_state(len(config.hidden_widths) + 1)
+    layers: list[object] = [keras.Input(shape=(state_dim,), dtype="float32")]
+    for k, width in enumerate(config.hidden_widths):
+        layers.append(
+            keras.layers.Dense(
+                width,
+                activation="relu",
+                kernel_initializer=keras.initializers.GlorotUniform(seed=int(layer_seeds[k])),
+                name=f"hidden{k}",
+            )
+        )
+    layers.append(
+        keras.layers.Dense(
+            n_actions,
+            activation="softmax",
+            kernel_initializer=keras.initializers.GlorotUniform(seed=int(layer_seeds[-1])),
+            name="actions",
+        )
+    )
+    model = keras.Sequential(layers, name="safetail_fnn")
+    # No XLA: avoids a compile step per input shape (partial last batches) and keeps training
+    # on the plain, op-deterministic kernels.
+    model.compile(
+        optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate),
+        loss="categorical_crossentropy",
+        jit_compile=False,
+    )
+    return model
+
+
+class NumpyForward:
+    """The FNN's forward pass in NumPy (float32), for one decision at a time.
+
+    Keras's per-call overhead (``model(x)``: hundreds of µs; ``model.predict``: tens of ms)
+    dwarfs the arithmetic of this small network. The last layer's softmax is skipped:
+    it preserves the order of the logits, so the argmax is the same action.
+    """
+
+    __slots__ = ("_hidden", "_out_bias", "_out_kernel")
+
+    def __init__(self, weights: Sequence[np.ndarray]) -> None:
+        """Args:
+        weights: ``model.get_weights()`` of a network from :func:`build_network`:
+            kernel, bias per layer, the last pair being the output layer.
+
+        Raises:
+            ValueError: an odd number of arrays or mismatched shapes.
+        """
+        if len(weights) < 2 or len(weights) % 2:
+            raise ValueError(f"expected kernel/bias pairs, got {len(weights)} arrays")
+        pairs = [
+            (np.ascontiguousarray(weights[i], dtype=np.float32),
+             np.ascontiguousarray(weights[i + 1], dtype=np.float32))
+            for i in range(0, len(weights), 2)
+        ]
+        for k, (kernel, bias) in enumerate(pairs):
+            if kernel.ndim != 2 or bias.shape != (kernel.shape[1],):
+                raise ValueError(f"layer {k}: kernel {kernel.shape} and bias {bias.shape} mismatch")
+            if k and kernel.shape[0] != pairs[k - 1][0].shape[1]:
+                raise ValueError(f"layer {k}: input width {kernel.shape[0]} does not match")
+        self._hidden = pairs[:-1]
+        self._out_kernel, self._out_bias = pairs[-1]
+
+    @classmethod
+    def from_model(cls, model: object) -> NumpyForward:
+        """Copy the current weights of a Keras model built by :func:`build_network`."""
+        return cls(model.get_weights())  # type: ignore[attr-defined]
+
+    def logits(self, states: np.ndarray) -> np.ndarray:
+        """Pre-softmax outputs for a state (shape (d,)) or a batch (shape (m, d))."""
+        h = states
+        for kernel, bias in self._hidden:
+            h = h @ kernel
+            h += bias
+            np.maximum(h, 0.0, out=h)
+        out = h @ self._out_kernel
+        out += self._out_bias
+        return out
+
+    def best_action(self, state: np.ndarray) -> int:
+        """argmax over actions for one float32 state of shape (d,)."""
+        return int(self.logits(state).argmax())
