@@ -1,0 +1,1 @@
+"""Small YAFS scenarios shared by the core tests."""
