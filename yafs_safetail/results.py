@@ -153,6 +153,13 @@ def baselines_of(names: Iterable[str], family: str | None = None) -> list[str]:
 # Atomic, deterministic writing
 
 
+def file_mode() -> int:
+    """Permission bits an ordinary ``open(..., "w")`` would give (temporary files get 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file in the same folder and a rename.
 
@@ -168,6 +175,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
     try:
         with os.fdopen(handle, "w", encoding="utf-8", newline="\n") as stream:
             stream.write(text)
+        os.chmod(tmp_name, file_mode())
         os.replace(tmp_name, dest)
     except BaseException:
         if os.path.exists(tmp_name):

@@ -1,0 +1,123 @@
+"""Tests for yafs_safetail.figures: files drawn from a results folder, and the CLI on bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from test_results import make_requests, write_run_folder
+
+from yafs_safetail import figures, results
+
+FIGURE_FILES = sorted(f"{stem}.{fmt}" for stem in figures.FIGURE_STEMS.values()
+                      for fmt in figures.FIGURE_FORMATS)
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "yafs_safetail.figures", *args],
+                          capture_output=True, text=True, timeout=120, check=False)
+
+
+@pytest.fixture(scope="module")
+def drawn_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("run")
+    write_run_folder(folder, np.random.default_rng(21))
+    written = figures.draw_figures(folder)
+    return folder, written
+
+
+def test_every_panel_written_as_png_and_pdf(drawn_folder):
+    folder, written = drawn_folder
+    assert sorted(p.name for p in written) == FIGURE_FILES
+    assert sorted(p.name for p in (folder / "figures").iterdir()) == FIGURE_FILES
+    for path in written:
+        data = path.read_bytes()
+        assert len(data) > 5000, path.name
+        assert data.startswith(b"\x89PNG" if path.suffix == ".png" else b"%PDF"), path.name
+
+
+def test_figures_are_deterministic(drawn_folder):
+    folder, written = drawn_folder
+    before = {p.name: p.read_bytes() for p in written}
+    again = figures.draw_figures(folder)
+    assert {p.name: p.read_bytes() for p in again} == before
+
+
+def test_run_without_a_baseline_family(tmp_path):
+    requests = make_requests(np.random.default_rng(22), n_train=40, n_test=40,
+                             methods=("SafeTail", "Oracle", "Rand-1"))
+    results.write_requests_csv(requests, tmp_path)
+    run = results.RunMetadata(
+        use_case=3, use_case_name="audio noise removal", preset="tuned", seed=4, n_servers=5,
+        beta=10, train_steps=40, test_steps=40, topology="t.json",
+        methods=["SafeTail", "Oracle", "Rand-1"], package_version="0.1.0", command="test")
+    written = figures.draw_figures(tmp_path, requests, run)
+    assert len(written) == len(FIGURE_FILES)
+    assert not (tmp_path / "run.json").exists()  # drawn from the given tables alone
+
+
+def test_cli_redraws(drawn_folder):
+    folder, _ = drawn_folder
+    done = run_cli(str(folder))
+    assert done.returncode == 0, done.stderr
+    assert "wrote 14 files" in done.stdout
+
+
+def _break_column(folder):
+    frame = results.read_requests_csv(folder).drop(columns=["deviation_s"])
+    frame.to_csv(folder / "requests.csv", index=False)
+
+
+def _garble(folder):
+    (folder / "requests.csv").write_bytes(b'method,phase\n"SafeTail,train\n\x00\xff\xfe')
+
+
+def _bad_value(folder):
+    frame = results.read_requests_csv(folder)
+    frame.loc[3, "latency_s"] = -1.0
+    frame.to_csv(folder / "requests.csv", index=False)
+
+
+def _bad_run(folder):
+    data = json.loads((folder / "run.json").read_text())
+    del data["preset"]
+    (folder / "run.json").write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize(
+    ("spoil", "needles"),
+    [
+        (lambda f: (f / "requests.csv").unlink(), ["requests.csv", "not found"]),
+        (_break_column, ["requests.csv", "deviation_s"]),
+        (_garble, ["requests.csv"]),
+        (_bad_value, ["requests.csv", "latency_s", "line 5"]),
+        (_bad_run, ["run.json", "preset"]),
+    ],
+)
+def test_cli_bad_input_keeps_existing_figures(tmp_path, drawn_folder, spoil, needles):
+    source, _ = drawn_folder
+    shutil.copytree(source, tmp_path, dirs_exist_ok=True)
+    before = {p.name: p.read_bytes() for p in (tmp_path / "figures").iterdir()}
+    assert len(before) == len(FIGURE_FILES)
+    spoil(tmp_path)
+    done = run_cli(str(tmp_path))
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    for needle in needles:
+        assert needle in lines[0]
+    after = {p.name: p.read_bytes() for p in (tmp_path / "figures").iterdir()}
+    assert after == before  # nothing deleted, changed or left half-written
+
+
+def test_cli_missing_folder(tmp_path):
+    done = run_cli(str(tmp_path / "nowhere"))
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        f"error: {tmp_path / 'nowhere'}: results folder not found"]
+    assert not (tmp_path / "nowhere").exists()

@@ -1,0 +1,258 @@
+"""The paper's Figs. 5-7, panels (a)-(g), drawn from a results folder alone.
+
+Usage::
+
+    python -m yafs_safetail.figures RESULTS_DIR
+
+reads ``requests.csv`` and ``run.json`` (see ``docs/results.md``) and writes, into
+``RESULTS_DIR/figures/``, one PNG and one PDF per panel:
+
+* (a) ``fig_a_latency_comparison``: median/p90/p95/p99 of SafeTail, Oracle and the x = 1
+  baselines, with the average target latency marked;
+* (b)-(d) ``fig_b_safetail_vs_rand``, ``fig_c_safetail_vs_minload``,
+  ``fig_d_safetail_vs_minprop``: SafeTail against every x of that baseline in the run;
+* (e)-(g) ``fig_e_access_rate``, ``fig_f_latency_deviation``, ``fig_g_abs_reward``: SafeTail's
+  β-step averages per average episode, training then testing, the boundary marked.
+
+Latency panels use the test phase. Figures are drawn with matplotlib's object API on the Agg
+canvas (no pyplot, so no global figure state and nothing to close), and every file is written
+under a temporary name and renamed, so bad input or a crash never leaves a half-written or
+deleted figure behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from yafs_safetail import results
+from yafs_safetail.cli import run_cli
+from yafs_safetail.paper_results import PERCENTILE_NAMES
+from yafs_safetail.results import ResultsFileError, RunMetadata
+
+FIGURES_DIR = "figures"
+FIGURE_FORMATS: tuple[str, ...] = ("png", "pdf")
+FIGURE_STEMS: dict[str, str] = {
+    "a": "fig_a_latency_comparison",
+    "b": "fig_b_safetail_vs_rand",
+    "c": "fig_c_safetail_vs_minload",
+    "d": "fig_d_safetail_vs_minprop",
+    "e": "fig_e_access_rate",
+    "f": "fig_f_latency_deviation",
+    "g": "fig_g_abs_reward",
+}
+PNG_DPI = 150
+
+_STYLE = {
+    "font.size": 8.5,
+    "axes.titlesize": 9,
+    "axes.grid": True,
+    "axes.axisbelow": True,
+    "grid.alpha": 0.3,
+    "legend.fontsize": 7.5,
+    "legend.frameon": False,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+}
+_FIGSIZE_IN = (5.2, 3.5)
+_FAMILY_COLOURS = {
+    results.SAFETAIL: ("#1f5fa8",),
+    results.ORACLE: ("#333333",),
+    "Rand": ("#f2a65a", "#e07b24", "#a8520f"),
+    "MinLoad": ("#8fd18a", "#4ca64a", "#23722a"),
+    "MinProp": ("#f08a8a", "#d64545", "#962020"),
+}
+_PHASE_COLOURS = {"train": "#1f5fa8", "test": "#d64545"}
+
+
+def _colour(method: str) -> str:
+    family, level = results.parse_method(method)
+    shades = _FAMILY_COLOURS.get(family, ("#7f7f7f",))
+    index = 0 if level is None else min(level - 1, len(shades) - 1)
+    return shades[index]
+
+
+def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, object]:
+    # Fixed margins rather than a layout engine: constrained layout measures every text
+    # artist on each save and roughly doubles the drawing time.
+    figure = Figure(figsize=_FIGSIZE_IN)
+    figure.subplots_adjust(left=0.12, right=0.97, bottom=0.17, top=0.85)
+    FigureCanvasAgg(figure)
+    axes = figure.add_subplot()
+    axes.set_title(f"{title}\nuse case {run.use_case} ({run.use_case_name}), preset {run.preset}")
+    figure.text(0.99, 0.005, f"seed {run.seed}, β = {run.beta}, yafs-safetail {run.package_version}",
+                ha="right", va="bottom", fontsize=6, color="#777777")
+    return figure, axes
+
+
+def _save(figure: Figure, folder: Path, stem: str) -> list[Path]:
+    written = []
+    for fmt in FIGURE_FORMATS:
+        dest = folder / f"{stem}.{fmt}"
+        handle, tmp_name = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp.{fmt}", dir=folder)
+        os.close(handle)
+        try:
+            # No creation date in the PDF: the same data gives the same bytes.
+            metadata = {"CreationDate": None} if fmt == "pdf" else None
+            figure.savefig(tmp_name, format=fmt, dpi=PNG_DPI, metadata=metadata)
+            os.chmod(tmp_name, results.file_mode())
+            os.replace(tmp_name, dest)
+        except BaseException:
+            if os.path.exists(tmp_name):
+                os.unlink(tmp_name)
+            raise
+        written.append(dest)
+    return written
+
+
+def _percentile_bars(axes: object, summary: pd.DataFrame, methods: Sequence[str]) -> None:
+    n_methods = max(len(methods), 1)
+    width = 0.8 / n_methods
+    positions = np.arange(len(results.PERCENTILES))
+    for i, method in enumerate(methods):
+        row = summary[summary["method"] == method].iloc[0]
+        heights = [float(row[f"p{p}_s"]) for p in results.PERCENTILES]
+        axes.bar(positions + (i - (n_methods - 1) / 2) * width, heights, width * 0.95,
+                 label=method, color=_colour(method))
+    axes.set_xticks(positions, [PERCENTILE_NAMES[p] for p in results.PERCENTILES])
+    axes.set_ylabel("latency (s)")
+
+
+def _average_target_s(requests: pd.DataFrame) -> float:
+    test = requests[requests["phase"] == "test"]
+    safetail = test[test["method"] == results.SAFETAIL]
+    return float((safetail if not safetail.empty else test)["target_s"].mean())
+
+
+def _latency_comparison(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata,
+                        folder: Path) -> list[Path]:
+    present = list(summary["method"])
+    methods = [m for m in (results.SAFETAIL, results.ORACLE) if m in present]
+    methods += [b for b in results.baselines_of(present) if results.parse_method(b)[1] == 1]
+    figure, axes = _new_figure(run, "(a) Latency: SafeTail, Oracle, x = 1 baselines")
+    _percentile_bars(axes, summary, methods)
+    axes.axhline(_average_target_s(requests), color="black", linestyle="--", linewidth=1,
+                 label="average target")
+    axes.legend(ncols=3, loc="upper left")
+    axes.margins(y=0.25)
+    return _save(figure, folder, FIGURE_STEMS["a"])
+
+
+def _family_comparison(summary: pd.DataFrame, run: RunMetadata, folder: Path, panel: str,
+                       family: str) -> list[Path]:
+    present = list(summary["method"])
+    levels = results.baselines_of(present, family)
+    title = f"({panel}) SafeTail vs {family}-x"
+    if not levels:
+        title += f" (no {family}-x in this run)"
+    figure, axes = _new_figure(run, title)
+    _percentile_bars(axes, summary, [results.SAFETAIL, *levels])
+    axes.legend(ncols=4, loc="upper left")
+    axes.margins(y=0.2)
+    return _save(figure, folder, FIGURE_STEMS[panel])
+
+
+def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, folder: Path,
+                   panel: str, title: str, ylabel: str) -> list[Path]:
+    figure, axes = _new_figure(run, f"({panel}) {title}")
+    for phase in results.PHASES:
+        part = curve[curve["phase"] == phase]
+        if not part.empty:
+            axes.plot(part["avg_episode"], part["value"], marker="o", markersize=2.5,
+                      linewidth=1.2, color=_PHASE_COLOURS[phase], label=f"{phase}ing")
+    if (curve["phase"] == "test").any() and (curve["phase"] == "train").any():
+        axes.axvline(boundary, color="#555555", linestyle=":", linewidth=1)
+    axes.set_xlabel(f"average episode number (steps / β, β = {run.beta})")
+    axes.set_ylabel(ylabel)
+    axes.legend(loc="best")
+    return _save(figure, folder, FIGURE_STEMS[panel])
+
+
+def load_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
+    """Read and check what the figures need from a results folder.
+
+    Raises:
+        ResultsFileError: the folder, ``requests.csv`` or ``run.json`` is missing or bad, or
+            ``requests.csv`` has no SafeTail rows or no test rows.
+    """
+    folder = Path(directory)
+    if not folder.is_dir():
+        raise ResultsFileError(f"{folder}: results folder not found")
+    requests = results.read_requests_csv(folder)
+    run = results.read_run_json(folder)
+    file = folder / results.REQUESTS_FILE
+    if not (requests["method"] == results.SAFETAIL).any():
+        raise ResultsFileError(f"{file}: column method: no {results.SAFETAIL} rows")
+    if not (requests["phase"] == "test").any():
+        raise ResultsFileError(f"{file}: column phase: no test rows")
+    return requests, run
+
+
+def draw_figures(
+    directory: str | os.PathLike[str],
+    requests: pd.DataFrame | None = None,
+    run: RunMetadata | None = None,
+) -> list[Path]:
+    """Draw panels (a)-(g) into ``directory/figures`` as PNG and PDF.
+
+    Args:
+        directory: the results folder.
+        requests: the requests table (read from ``requests.csv`` when None).
+        run: the run's metadata (read from ``run.json`` when None).
+
+    Returns:
+        The written files, panel by panel, PNG before PDF.
+
+    Raises:
+        ResultsFileError: bad or missing input (nothing is written or removed then).
+    """
+    folder = Path(directory)
+    if requests is None or run is None:
+        loaded_requests, loaded_run = load_inputs(folder)
+        requests = loaded_requests if requests is None else requests
+        run = loaded_run if run is None else run
+    summary = results.summarize(requests, preset=run.preset)
+    out = folder / FIGURES_DIR
+    out.mkdir(exist_ok=True)
+    boundary = results.train_test_boundary(requests, run.beta)
+    written: list[Path] = []
+    with matplotlib.rc_context(_STYLE):
+        written += _latency_comparison(requests, summary, run, out)
+        for panel, family in zip("bcd", results.BASELINE_FAMILIES, strict=True):
+            written += _family_comparison(summary, run, out, panel, family)
+        written += _episode_curve(results.access_rate_by_episode(requests, run.beta), boundary,
+                                  run, out, "e", "SafeTail access rate", "average access rate")
+        written += _episode_curve(results.latency_deviation_by_episode(requests, run.beta),
+                                  boundary, run, out, "f", "SafeTail latency deviation",
+                                  "average target − latency (s)")
+        written += _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
+                                  run, out, "g", "SafeTail |reward|", "average |reward|")
+    return written
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m yafs_safetail.figures DIR``: redraw every figure of a results folder."""
+    parser = argparse.ArgumentParser(
+        prog="python -m yafs_safetail.figures",
+        description="Redraw the paper's Figs. 5-7 (a)-(g) from a results folder "
+                    "(requests.csv and run.json) into DIR/figures as PNG and PDF.",
+    )
+    parser.add_argument("directory", metavar="DIR", help="results folder of one run")
+    args = parser.parse_args(argv)
+    written = draw_figures(args.directory)
+    print(f"wrote {len(written)} files to {Path(args.directory) / FIGURES_DIR}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run_cli(main))
