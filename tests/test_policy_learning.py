@@ -164,20 +164,37 @@ def test_full_budget_tuned_learns_paper_does_not(use_case: int) -> None:
     assert abs(paper.optimal_fraction - paper.initial_optimal_fraction) < 0.05
 
 
+def ablations(use_case: int) -> dict[str, LearnerConfig]:
+    """``paper`` plus one or more of ``tuned``'s deviations, to attribute the effect."""
+    paper, tuned = get_preset("paper", use_case), get_preset("tuned", use_case)
+    replay = {"replay_capacity": tuned.replay_capacity, "epochs_per_round": tuned.epochs_per_round,
+              "batch_size": tuned.batch_size}
+    return {
+        "paper+lr": dataclasses.replace(paper, learning_rate=tuned.learning_rate),
+        "paper+lr+eps": dataclasses.replace(
+            paper, learning_rate=tuned.learning_rate, epsilon_decay=tuned.epsilon_decay),
+        "paper+lr+replay": dataclasses.replace(
+            paper, learning_rate=tuned.learning_rate, **replay),
+        "paper+eps+replay": dataclasses.replace(
+            paper, epsilon_decay=tuned.epsilon_decay, **replay),
+    }
+
+
 def main() -> None:
     print(f"random policy: optimal for {random_policy_optimal_fraction():.3f} of states")
-    print("preset uc steps rounds final_eps optimal_before optimal_after mean_greedy_reward "
+    print("config uc steps rounds final_eps optimal_before optimal_after mean_greedy_reward "
           "rel_weight_change wall_s")
+    rows: list[tuple[str, LearnerConfig]] = []
     for use_case in (1, 2, 3):
-        for name in ("paper", "tuned"):
-            config = get_preset(name, use_case)
-            r = run_toy(config, seed=11)
-            print(
-                f"{name:6s} {use_case} {config.train_steps:5d} {r.n_rounds:3d} "
-                f"{r.final_epsilon:.4f} {r.initial_optimal_fraction:.3f} {r.optimal_fraction:.3f} "
-                f"{r.mean_greedy_reward:.5f} "
-                f"{r.relative_weight_change:.2e} {r.wall_s:.1f}"
-            )
+        rows += [(name, get_preset(name, use_case)) for name in ("paper", "tuned")]
+    rows += list(ablations(1).items())
+    for label, config in rows:
+        r = run_toy(config, seed=11)
+        print(
+            f"{label:16s} {config.use_case} {config.train_steps:5d} {r.n_rounds:3d} "
+            f"{r.final_epsilon:.4f} {r.initial_optimal_fraction:.3f} {r.optimal_fraction:.3f} "
+            f"{r.mean_greedy_reward:.5f} {r.relative_weight_change:.2e} {r.wall_s:.1f}"
+        )
 
 
 if __name__ == "__main__":
