@@ -36,6 +36,8 @@ from yafs_safetail.edge.latency import (
 )
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.topology_io import EdgeScenario
+from yafs_safetail.edge.traces import TraceSet
+from yafs_safetail.edge.usecases import UseCase
 
 #: Compute noise z ~ N(0, 1) is clipped to ±this many σ_k, so the worst-case edge latency
 #: (and hence the on-device fallback bound) is finite; clipping touches 6e-5 of the draws.
@@ -173,7 +175,7 @@ class EdgeWorld:
     seed: int
     phase: str
     scenario: EdgeScenario
-    use_case: object
+    use_case: UseCase
     max_load: int
     episode_steps: int
     request_row: np.ndarray
@@ -270,7 +272,7 @@ class EdgeWorld:
         )
 
 
-def worst_case_copy_latency_s(inputs: TraceInputs, use_case, max_load: int) -> float:
+def worst_case_copy_latency_s(inputs: TraceInputs, use_case: UseCase, max_load: int) -> float:
     """An upper bound on any admitted copy's Eq. 1 latency under these traces.
 
     Largest input (and the use case's bound on its output) over the slowest bandwidth any
@@ -302,7 +304,7 @@ def worst_case_copy_latency_s(inputs: TraceInputs, use_case, max_load: int) -> f
 
 def build_world(
     scenario: EdgeScenario,
-    use_case,
+    use_case: UseCase,
     inputs: TraceInputs,
     n_steps: int,
     seed: int,
@@ -352,8 +354,21 @@ def build_world(
             )
 
     n = scenario.n_servers
-    streams = [np.random.default_rng(s) for s in phase_seed_sequence(seed, phase).spawn(6)]
-    request_rng, user_bw_rng, episode_rng, server_bw_rng, rtt_rng, noise_rng = streams
+    request_seq, user_bw_seq, episode_seq, servers_seq = phase_seed_sequence(seed, phase).spawn(4)
+    request_rng = np.random.default_rng(request_seq)
+    user_bw_rng = np.random.default_rng(user_bw_seq)
+    episode_rng = np.random.default_rng(episode_seq)
+    # One stream per server index, so server i's draws do not depend on how many servers
+    # the topology has (removing a server leaves the others' copies unchanged).
+    server_rngs = [np.random.default_rng(s) for s in servers_seq.spawn(n)]
+    bw_quantiles = np.empty((n_steps, n, 2))
+    rtt_quantiles = np.empty((n_steps, n))
+    noise = np.empty((n_steps, n))
+    for server, rng in enumerate(server_rngs):
+        bw_quantiles[:, server, :] = rng.random((n_steps, 2))
+        rtt_quantiles[:, server] = rng.random(n_steps)
+        noise[:, server] = rng.standard_normal(n_steps)
+    noise = np.clip(noise, -NOISE_CLIP_SIGMAS, NOISE_CLIP_SIGMAS)
 
     rows = request_rng.integers(0, inputs.request_input_bytes.shape[0], size=n_steps)
     input_bytes = inputs.request_input_bytes[rows].astype(float)
@@ -373,7 +388,6 @@ def build_world(
     devices = np.asarray(scenario.server_load_devices)
     background = inputs.load_levels[load_row][:, devices].astype(np.int64)
 
-    bw_quantiles = server_bw_rng.random((n_steps, n, 2))
     levels = inputs.n_contention_levels
     uplink = np.empty((n_steps, n, levels))
     downlink = np.empty((n_steps, n, levels))
@@ -390,7 +404,6 @@ def build_world(
         output_bottleneck_bps(uplink, user_downlink_bps[:, None, None]),
     )
 
-    rtt_quantiles = rtt_rng.random((n_steps, n))
     rtt_s = np.empty((n_steps, n))
     median_propagation_s = np.empty(n)
     for server, condition in enumerate(scenario.server_conditions):
@@ -398,7 +411,6 @@ def build_world(
         rtt_s[:, server] = _quantile_lookup(pool, rtt_quantiles[:, server])
         median_propagation_s[server] = float(np.median(pool))
 
-    noise = np.clip(noise_rng.standard_normal((n_steps, n)), -NOISE_CLIP_SIGMAS, NOISE_CLIP_SIGMAS)
     ks = np.arange(1, max_load + 1)
     predictions = inputs.predict_compute_s(
         np.repeat(gamma, ks.size, axis=0), np.tile(ks, n_steps)
@@ -442,4 +454,53 @@ def build_world(
         median_compute_s=median_compute_s,
         target_s=np.asarray(target, dtype=float),
         fallback_latency_s=float(use_case.fallback_latency_s),
+    )
+
+
+def trace_inputs(
+    traces: TraceSet,
+    use_case: UseCase,
+    predict_compute_s: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    compute_sigma_s: np.ndarray | None = None,
+    max_load: int = DEFAULT_MAX_LOAD,
+) -> TraceInputs:
+    """Assembles the world's inputs from the loaded traces of one use case.
+
+    Args:
+        traces: from :func:`yafs_safetail.edge.traces.load_traces`.
+        use_case: the use case.
+        predict_compute_s: the compute model's batch prediction ``f(gamma_rows, k_rows)``.
+        compute_sigma_s: σ_k for k = 1..5 (default: the published σ_k of the use case).
+        max_load: the top background level the load trace is scaled into.
+    """
+    compute = traces.compute[use_case.number]
+    if compute.gamma_columns != use_case.gamma_columns:
+        raise WorldError(
+            f"{compute.source}: Γ columns {compute.gamma_columns} differ from use case "
+            f"{use_case.number}'s {use_case.gamma_columns}"
+        )
+    k = compute.n_processes
+    latency = compute.latency_s
+    ks = np.arange(1, published.MAX_PROCESSES + 1)
+    sigma = np.asarray(
+        published.SIGMA_S[use_case.number] if compute_sigma_s is None else compute_sigma_s, dtype=float
+    )
+    return TraceInputs(
+        source=str(traces.directory),
+        server_uplink_pools_bps=tuple(
+            np.sort(traces.bandwidth.samples_bps(level, "uplink")).astype(float)
+            for level in range(traces.bandwidth.max_contention_level + 1)
+        ),
+        server_downlink_pools_bps=tuple(
+            np.sort(traces.bandwidth.samples_bps(level, "downlink")).astype(float)
+            for level in range(traces.bandwidth.max_contention_level + 1)
+        ),
+        rtt_pools_s={c: np.sort(traces.propagation.samples_s(c)) for c in traces.propagation.conditions},
+        load_levels=traces.load.levels(max_load),
+        request_gamma=compute.gamma_matrix(),
+        request_input_bytes=compute.frame[use_case.input_bytes_column].to_numpy(dtype=float),
+        predict_compute_s=predict_compute_s,
+        compute_sigma_s=sigma,
+        median_compute_by_k_s=np.array([np.median(latency[k == kk]) for kk in ks]),
+        max_compute_by_k_s=np.array([np.max(latency[k == kk]) for kk in ks]),
     )
