@@ -68,8 +68,17 @@ def test_empty_gamma_and_new_array_each_call() -> None:
 
 
 def test_gamma_length_mismatch_is_reported() -> None:
-    with pytest.raises(ValueError, match="1 Γ entries but StateScales.gamma has 0"):
+    with pytest.raises(ValueError, match="1 Γ entries but StateScales.gamma has 2"):
         encode_state(make_observation(), StateScales.for_use_case(3))
+
+
+def test_use_case_defaults_follow_the_edge_gamma_columns() -> None:
+    from yafs_safetail.edge.usecases import USE_CASES
+
+    for number, use_case in USE_CASES.items():
+        scales = StateScales.for_use_case(number)
+        assert len(scales.gamma) == len(use_case.gamma_columns)
+    assert StateScales.for_use_case(3).gamma == (160e3, 5.0)
 
 
 @pytest.mark.parametrize(

@@ -16,7 +16,6 @@ The paper is silent on normalisation; docs/policy.md lists the reference values.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -33,11 +32,13 @@ SERVER_FEATURES = (
     "median_propagation_s",
 )
 
-# Typical request sizes (bytes) per use case, only used to bring the size features to O(1):
-# COCO val2017 images average about 160 KB (UC1, UC2); a 5 s clip of 16-bit 16 kHz audio is
-# 160 KB (UC3). Detections are a few KB (UC1); masks (UC2) and denoised audio (UC3) are of the
-# order of the input.
-_USE_CASE_BYTES = {1: (160e3, 4e3), 2: (160e3, 160e3), 3: (160e3, 160e3)}
+# Reference sizes, only there to bring the size features to O(1). Input: COCO val2017 images
+# average about 160 KB (UC1, UC2); a 5 s clip of 16-bit 16 kHz audio is 160 KB (UC3).
+# Estimated output: a few KB of detections (UC1), masks at about 0.4 of the image (UC2), the
+# denoised clip at the input's size (UC3).
+_USE_CASE_BYTES = {1: (160e3, 4e3), 2: (160e3, 64e3), 3: (160e3, 160e3)}
+# Reference per Γ column of edge/usecases.py (units of the column).
+GAMMA_REFERENCES = {"file_bytes": 160e3, "duration_s": 5.0}
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,21 +77,25 @@ class StateScales:
                 raise ValueError(f"StateScales.gamma[{i}] must be finite and > 0, got {value!r}")
 
     @classmethod
-    def for_use_case(cls, use_case: int, gamma: Sequence[float] = ()) -> StateScales:
-        """Default scales for a use case (1, 2 or 3).
-
-        Args:
-            use_case: 1 (object detection), 2 (instance segmentation), 3 (noise removal).
-            gamma: One reference per Γ entry the edge model puts in the observation (the use
-                case's definition knows what Γ holds, e.g. a clip duration in seconds).
+    def for_use_case(cls, use_case: int) -> StateScales:
+        """Default scales for a use case (1, 2 or 3), Γ references following the use case's
+        Γ columns in ``yafs_safetail.edge.usecases`` (UC1: none; UC2: file bytes; UC3: file
+        bytes, duration s).
 
         Raises:
-            ValueError: unknown use case.
+            ValueError: unknown use case, or a Γ column without a reference here.
         """
-        if use_case not in _USE_CASE_BYTES:
+        from yafs_safetail.edge.usecases import USE_CASES
+
+        if use_case not in _USE_CASE_BYTES or use_case not in USE_CASES:
             raise ValueError(f"use_case must be one of {sorted(_USE_CASE_BYTES)}, got {use_case!r}")
         input_bytes, output_bytes = _USE_CASE_BYTES[use_case]
-        return cls(input_bytes=input_bytes, output_bytes=output_bytes, gamma=tuple(gamma))
+        columns = USE_CASES[use_case].gamma_columns
+        missing = [c for c in columns if c not in GAMMA_REFERENCES]
+        if missing:
+            raise ValueError(f"use case {use_case}: no state reference scale for Γ column(s) {missing}")
+        return cls(input_bytes=input_bytes, output_bytes=output_bytes,
+                   gamma=tuple(GAMMA_REFERENCES[c] for c in columns))
 
 
 def state_dim(n_servers: int, n_gamma: int, n_location: int) -> int:
