@@ -13,7 +13,8 @@ Conventions used everywhere here:
   ``SafeTail latency / Oracle latency``; "SafeTail 1.72x faster than Rand-1" is
   ``Rand-1 latency / SafeTail latency``.
 * Every file is written to a temporary name in the same folder and then renamed, and floats
-  are written with one fixed format, so the same data always gives byte-identical files.
+  are written as their shortest round-trip repr, so the same data always gives byte-identical
+  files and reading a file back gives exactly the numbers that were written.
 """
 
 from __future__ import annotations
@@ -90,9 +91,10 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "mean_abs_reward",
 )
 
-# Ten significant digits round-trip every latency to well below a nanosecond and is fixed,
-# which is what makes the files byte-identical for identical data.
-FLOAT_FORMAT = "%.10g"
+# Floats are written as Python's shortest round-trip repr: deterministic (identical data gives
+# identical bytes) and lossless, so a summary recomputed from requests.csv equals the one
+# computed in memory before writing it, to the last bit.
+FLOAT_FORMAT = None
 NA_REP = "NaN"
 
 _BASELINE_RE = re.compile(r"^(Rand|MinLoad|MinProp)-(\d+)$")
@@ -725,6 +727,24 @@ def write_summary(
     write_text_atomic(folder / SUMMARY_CSV_FILE, _csv_text(summary))
     write_text_atomic(folder / SUMMARY_MD_FILE, summary_markdown(summary, run))
     return summary
+
+
+def write_results(
+    directory: str | os.PathLike[str], requests: pd.DataFrame, run: RunMetadata
+) -> pd.DataFrame:
+    """Write a run's ``requests.csv``, ``run.json``, ``summary.csv`` and ``summary.md``.
+
+    Args:
+        directory: the results folder (must exist).
+        requests: the requests table.
+        run: the run's metadata.
+
+    Returns:
+        The summary DataFrame.
+    """
+    write_requests_csv(requests, directory)
+    write_run_json(directory, run)
+    return write_summary(directory, requests, run)
 
 
 # --------------------------------------------------------------------------------------------
