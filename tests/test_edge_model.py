@@ -168,3 +168,17 @@ def test_replies_route_back_to_the_user_and_population_runs_n_steps(traces):
     assert all(r.time_emit_s == pytest.approx(60.0 * r.step) for r in selection.records)
     assert all(len(r.servers) == 3 and r.n_servers == 7 for r in selection.records)
     assert model.requests_seen == 60
+
+
+def test_example_script_runs(tmp_path):
+    import subprocess
+    import sys
+
+    if not (ROOT / "traces" / "models" / "compute_uc1.npz").is_file():
+        pytest.skip("compute models not generated yet (python traces/generate.py)")
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "examples/paper_scenario/main.py"), "--steps", "60", "--method", "MinLoad-2"],
+        capture_output=True, text=True, timeout=120, check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "median" in result.stdout and "p99" in result.stdout

@@ -21,10 +21,12 @@ from __future__ import annotations
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from yafs_safetail.edge import published
+from yafs_safetail.edge.compute import ComputeModel
 from yafs_safetail.edge.latency import (
     CopyLatency,
     copy_latency,
@@ -36,7 +38,7 @@ from yafs_safetail.edge.latency import (
 )
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.topology_io import EdgeScenario
-from yafs_safetail.edge.traces import TraceSet
+from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR, TraceSet, load_traces
 from yafs_safetail.edge.usecases import UseCase
 
 #: Compute noise z ~ N(0, 1) is clipped to ±this many σ_k, so the worst-case edge latency
@@ -504,3 +506,22 @@ def trace_inputs(
         median_compute_by_k_s=np.array([np.median(latency[k == kk]) for kk in ks]),
         max_compute_by_k_s=np.array([np.max(latency[k == kk]) for kk in ks]),
     )
+
+
+def load_inputs(
+    use_case: UseCase,
+    trace_dir: Path | str = DEFAULT_TRACE_DIR,
+    compute_model: ComputeModel | None = None,
+) -> TraceInputs:
+    """The traces of ``trace_dir`` and the use case's shipped compute model, ready to draw from.
+
+    Args:
+        use_case: the use case.
+        trace_dir: the traces folder (default: the repository's ``traces/``).
+        compute_model: a compute model to use instead of ``trace_dir/models``'s.
+
+    Raises:
+        TraceError: a missing or invalid trace or model file.
+    """
+    model = compute_model or ComputeModel.load(use_case.number, Path(trace_dir) / "models")
+    return trace_inputs(load_traces(trace_dir), use_case, model.predict_s, model.sigma_by_k_s)
