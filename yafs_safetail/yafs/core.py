@@ -12,6 +12,7 @@ import logging
 import os
 from collections import deque
 from collections.abc import Callable
+from heapq import heappush
 from typing import Any
 
 import numpy as np
@@ -33,12 +34,16 @@ RequestListener = Callable[["Sim", RequestOutcome], None]
 
 
 class _Wake:
-    """A minimal simpy-compatible event: simpy's step only needs these attributes."""
+    """A minimal simpy-compatible event: simpy's step only needs these attributes.
+
+    ``callbacks`` is a shared one-element tuple (simpy only iterates it), so an event
+    costs one small allocation.
+    """
 
     __slots__ = ("callbacks", "_ok", "_value", "item", "aux")
 
-    def __init__(self, callback: Callable[[_Wake], None], item: Any, aux: Any = None) -> None:
-        self.callbacks = [callback]
+    def __init__(self, callbacks: tuple[Callable[[_Wake], None]], item: Any, aux: Any = None) -> None:
+        self.callbacks = callbacks
         self._ok = True
         self._value = None
         self.item = item
@@ -193,6 +198,15 @@ class Sim:
         self._replicas: dict[int, _Replica] = {}
         self._in_flight_hops = 0
         self._initialised = False
+        # Hot-path shortcuts: row buffers (None = no results) and bound callbacks.
+        self._link_rows = self.metrics.link_rows if write_results else None
+        self._event_rows = self.metrics.event_rows if write_results else None
+        self._hop_end_callbacks = (self._on_hop_end,)
+        self._service_end_callbacks = (self._on_service_end,)
+        self._source_tick_callbacks = (self._on_source_tick,)
+        # Events go straight onto simpy's heap, exactly as Environment.schedule puts them.
+        self._queue = self.env._queue
+        self._eid = self.env._eid
         self.set_link_delay(link_delay or YAFSLinkDelay())
         self.set_service_model(service_model or YAFSServiceModel())
 
@@ -272,9 +286,14 @@ class Sim:
             self.lost_messages += 1
             return 0
         forward = self._forward
+        # ``msg`` is always a fresh object here, so it serves as the first copy; the other
+        # copies are cloned before any copy moves (delivery may mutate it).
+        copies = [msg]
+        if count > 1:
+            copies += [msg.clone() for _ in range(count - 1)]
         for index in range(count):
             path = paths[index]
-            copy = msg.clone()
+            copy = copies[index]
             copy.path = path
             copy.app_name = app_name
             copy.idDES = des_list[index]
@@ -306,32 +325,34 @@ class Sim:
             return
         now = self.env._now
         if self._link_queues:
+            busy = self.last_busy_time
             link = (src, dst)
-            last_used = self.last_busy_time.get(link, 0.0)
+            last_used = busy.get(link, 0.0)
+            # YAFS's arithmetic, kept term for term so that times match its traces exactly.
             if last_used < now:
                 delay = latency
-                self.last_busy_time[link] = latency + now
+                busy[link] = latency + now
             else:
                 shift = last_used - now
                 delay = latency + shift
-                self.last_busy_time[link] = now + shift + latency
+                busy[link] = now + shift + latency
         else:
             delay = latency
-        metrics = self.metrics
-        if metrics.enabled:
-            rows = metrics.link_rows
+        rows = self._link_rows
+        if rows is not None:
             rows.append((msg.id, "LINK", src, dst, msg.app_name, latency, msg.name, now,
                          msg.bytes, self._in_flight_hops))
-            if len(rows) >= metrics.buffer_rows:
-                metrics.flush()
         self._in_flight_hops += 1
-        self.env.schedule(_Wake(self._on_hop_end, msg), NORMAL, delay)
+        heappush(self._queue, (now + delay, NORMAL, next(self._eid), _Wake(self._hop_end_callbacks, msg)))
 
     def _on_hop_end(self, event: _Wake) -> None:
         msg = event.item
         self._in_flight_hops -= 1
-        msg._hop += 1
-        self._forward(msg)
+        hop = msg._hop = msg._hop + 1
+        if hop >= len(msg.path) - 1:
+            self._deliver(msg)
+        else:
+            self._forward(msg)
 
     def _reroute(self, msg: Message, src: Any, dst: Any) -> None:
         """The link ``src -> dst`` is gone: ask the selection for another path (YAFS)."""
@@ -400,7 +421,8 @@ class Sim:
         node = self.alloc_DES[replica.des]
         service = self.service_model.service_time_s(self, msg, replica.des, node, replica.module)
         self._record(replica, msg, self.NODE_METRIC, service, self.env._now)
-        self.env.schedule(_Wake(self._on_service_end, msg, replica), NORMAL, service)
+        heappush(self._queue, (self.env._now + service, NORMAL, next(self._eid),
+                               _Wake(self._service_end_callbacks, msg, replica)))
 
     def _on_service_end(self, event: _Wake) -> None:
         msg = event.item
@@ -457,8 +479,8 @@ class Sim:
         return out
 
     def _record(self, replica: _Replica, msg: Message, kind: str, service: float, now: float) -> None:
-        metrics = self.metrics
-        if not metrics.enabled:
+        rows = self._event_rows
+        if rows is None:
             return
         app_name = replica.app_name
         path = msg.path
@@ -469,15 +491,13 @@ class Sim:
             src_des = -1
             first = path[0]
             alloc = self.alloc_DES
-            for des in senders:
+            for des in reversed(senders):
                 if alloc.get(des) == first:
                     src_des = des
-        rows = metrics.event_rows
+                    break
         rows.append((msg.id, kind, app_name, replica.module, msg.name, src_des, replica.des,
                      path[0] if path else None, self.alloc_DES[replica.des], msg.src, service,
                      now, service + now, float(msg.timestamp), float(msg.timestamp_rec)))
-        if len(rows) >= metrics.buffer_rows:
-            metrics.flush()
 
     # ----------------------------------------------------------------- request outcomes
 
@@ -518,10 +538,14 @@ class Sim:
     # ----------------------------------------------------------------- sources
 
     def _schedule_source(self, source: _Source) -> None:
-        self.env.schedule(_Wake(self._on_source_tick, source), NORMAL, source.distribution.next())
+        self.env.schedule(_Wake(self._source_tick_callbacks, source), NORMAL, source.distribution.next())
 
     def _on_source_tick(self, event: _Wake) -> None:
         source = event.item
+        rows = self._link_rows
+        # Buffers are checked once per emitted request rather than once per row.
+        if rows is not None and len(rows) + len(self._event_rows) >= self.metrics.buffer_rows:
+            self.metrics.flush()
         running = self.des_process_running
         if running.get(source.des, False):
             self._emit_request(source)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import os
+from operator import itemgetter
 from typing import Any
 
 EVENT_COLUMNS = (
@@ -16,6 +17,23 @@ EVENT_COLUMNS = (
     "module.src", "service", "time_in", "time_out", "time_emit", "time_reception",
 )
 LINK_COLUMNS = ("id", "type", "src", "dst", "app", "latency", "message", "ctime", "size", "buffer")
+
+# Columns that can hold text (names, node ids); the others are numbers.
+_EVENT_TEXT = itemgetter(1, 2, 3, 4, 7, 8, 9)
+_LINK_TEXT = itemgetter(1, 2, 3, 4, 6)
+_EVENT_FORMAT = ",".join(["%s"] * len(EVENT_COLUMNS)) + "\r\n"
+_LINK_FORMAT = ",".join(["%s"] * len(LINK_COLUMNS)) + "\r\n"
+_SPECIAL = frozenset(',"\r\n')
+
+
+def _plain(rows: list[tuple[Any, ...]], text_columns: itemgetter) -> bool:
+    """True if no text field needs CSV quoting (so ``%s`` formatting equals ``csv``'s output)."""
+    seen = set(map(text_columns, rows))
+    values = {value for row in seen for value in row}
+    for value in values:
+        if value is None or (isinstance(value, str) and (value == "" or not _SPECIAL.isdisjoint(value))):
+            return False
+    return True
 
 
 class Metrics:
@@ -88,8 +106,17 @@ class Metrics:
         if self._writers is None:
             self.open()
         assert self._writers is not None and self._files is not None
-        self._writers[0].writerows(self.event_rows)
-        self._writers[1].writerows(self.link_rows)
+        for rows, text_columns, line_format, index in (
+            (self.event_rows, _EVENT_TEXT, _EVENT_FORMAT, 0),
+            (self.link_rows, _LINK_TEXT, _LINK_FORMAT, 1),
+        ):
+            if not rows:
+                continue
+            # Same bytes as csv.writer, faster: plain %s formatting when nothing needs quoting.
+            if _plain(rows, text_columns):
+                self._files[index].write("".join([line_format % row for row in rows]))
+            else:
+                self._writers[index].writerows(rows)
         self.rows_written += len(self.event_rows) + len(self.link_rows)
         self.event_rows.clear()
         self.link_rows.clear()
