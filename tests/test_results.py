@@ -136,6 +136,9 @@ def test_write_requests_rejects_missing_column(tmp_path):
         (lambda f: f.assign(step=[1.5] + list(f["step"][1:])), "column step, line 2"),
         (lambda f: f.assign(fallback=[0, 3] + list(f["fallback"][2:])), "column fallback, line 3"),
         (lambda f: f.assign(method=[np.nan] + list(f["method"][1:])), "column method, line 2"),
+        (lambda f: f.assign(deviation_s=-f["deviation_s"]), "column deviation_s, line 2"),
+        (lambda f: f.assign(servers=["0;1;2;3"] * len(f)), "column servers, line 2"),
+        (lambda f: f.assign(access_rate=f["access_rate"] * 10), "column access_rate, line 2"),
     ],
 )
 def test_read_requests_names_file_and_field(tmp_path, mutate, needle):

@@ -296,6 +296,17 @@ def _check_requests_values(frame: pd.DataFrame, file: Path) -> None:
     _first_bad(file, ~frame["fallback"].isin((0, 1)), "fallback", frame, "expected 0 or 1")
     _first_bad(file, frame["n_selected"] < 1, "n_selected", frame, "expected at least 1")
     _first_bad(file, frame["refused"] < 0, "refused", frame, "expected a count >= 0")
+    access = frame["access_rate"]
+    _first_bad(file, ~((access > 0) & (access <= 1)), "access_rate", frame,
+               "expected a share in (0, 1]")
+    n_listed = frame["servers"].str.count(";") + (frame["servers"] != "")
+    _first_bad(file, n_listed != frame["n_selected"], "servers", frame,
+               "expected n_selected server indices joined by ';'")
+    # Catches the easy sign slip (latency − target): the paper's deviation is target − achieved.
+    expected = frame["target_s"] - frame["latency_s"]
+    tolerance = 1e-9 * np.maximum(1.0, np.abs(frame["target_s"]))
+    _first_bad(file, ~(np.abs(frame["deviation_s"] - expected) <= tolerance), "deviation_s",
+               frame, "expected target_s − latency_s")
 
 
 # --------------------------------------------------------------------------------------------
