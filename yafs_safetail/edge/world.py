@@ -21,6 +21,7 @@ from __future__ import annotations
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -137,6 +138,10 @@ def memory_utilisation(n_processes: np.ndarray | int) -> np.ndarray:
 def cpu_utilisation(n_processes: np.ndarray | int) -> np.ndarray:
     """U_i for k = 0..5 processes: k · CPU share per process / 1600 %, capped at 1."""
     return np.minimum(_CPU_IN_USE_PERCENT[np.asarray(n_processes)] / SERVER_CPU_PERCENT, 1.0)
+
+
+_MEMORY_UTIL = memory_utilisation(np.arange(published.MAX_PROCESSES + 1))
+_CPU_UTIL = cpu_utilisation(np.arange(published.MAX_PROCESSES + 1))
 
 
 @dataclass(frozen=True)
@@ -256,22 +261,32 @@ class EdgeWorld:
     def observation(self, step: int, active_users: np.ndarray) -> Observation:
         """ω^t at step ``step`` given each server's current number of active users ℓ_i."""
         active = np.asarray(active_users, dtype=np.int64)
-        level = np.minimum(active, self.n_contention_levels - 1)
-        servers = np.arange(self.n_servers)
+        # Called once per request: flat takes on small arrays keep it to a few microseconds.
+        n_levels = self.n_contention_levels
+        flat = self._server_offsets + np.minimum(active, n_levels - 1)
+        processes = np.minimum(active, published.MAX_PROCESSES)
         return Observation(
-            server_uplink_bps=self.server_uplink_by_level_bps[step, servers, level],
-            server_downlink_bps=self.server_downlink_by_level_bps[step, servers, level],
-            server_memory_util=memory_utilisation(np.minimum(active, published.MAX_PROCESSES)),
-            server_cpu_util=cpu_utilisation(np.minimum(active, published.MAX_PROCESSES)),
+            server_uplink_bps=self.server_uplink_by_level_bps[step].ravel().take(flat),
+            server_downlink_bps=self.server_downlink_by_level_bps[step].ravel().take(flat),
+            server_memory_util=_MEMORY_UTIL.take(processes),
+            server_cpu_util=_CPU_UTIL.take(processes),
             server_active_users=active,
             server_median_propagation_s=self.median_propagation_s,
             input_bytes=float(self.input_bytes[step]),
             est_output_bytes=float(self.est_output_bytes[step]),
             gamma=self.gamma[step],
-            user_location=self.scenario.user_location,
+            user_location=self._user_location,
             user_uplink_bps=float(self.user_uplink_bps[step]),
             user_downlink_bps=float(self.user_downlink_bps[step]),
         )
+
+    @cached_property
+    def _server_offsets(self) -> np.ndarray:
+        return np.arange(self.n_servers) * self.n_contention_levels
+
+    @cached_property
+    def _user_location(self) -> np.ndarray:
+        return self.scenario.user_location
 
 
 def worst_case_copy_latency_s(inputs: TraceInputs, use_case: UseCase, max_load: int) -> float:
