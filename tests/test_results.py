@@ -374,6 +374,8 @@ def test_aggregate_across_seeds(tmp_path):
     values = [results.read_summary_csv(f).iloc[0]["p90_s"] for f in folders]
     assert row["mean"] == pytest.approx(np.mean(values))
     assert row["n_seeds"] == 3 and row["ci_low"] < row["mean"] < row["ci_high"]
+    table = results.aggregate_markdown(stats)
+    assert f"| SafeTail | 3 | {np.mean([results.read_summary_csv(f).iloc[0]['p50_s'] for f in folders]):.3f} [" in table
     speedups = results.aggregate_speedups(folders)
     oracle50 = speedups[(speedups["method"] == "Oracle") & (speedups["percentile"] == 50)].iloc[0]
     per_seed = [results.speedup(results.read_summary_csv(f), "Oracle", "SafeTail", 50)
@@ -399,10 +401,10 @@ def test_aggregate_rejects_mixed_use_cases(tmp_path):
 @pytest.mark.parametrize(
     ("mean", "low", "high", "paper", "start"),
     [
-        (1.1, 1.0, 1.2, 1.08, "agrees"),
+        (1.1, 1.0, 1.2, 1.08, "consistent"),
         (1.5, 1.4, 1.6, 1.08, "differs in size"),
         (0.8, 0.7, 0.9, 1.08, "differs in direction"),
-        (1.07, math.nan, math.nan, 1.08, "agrees within"),
+        (1.07, math.nan, math.nan, 1.08, "close: within 5%"),
         (1.0, 0.9, 1.1, math.nan, "paper states no number"),
     ],
 )

@@ -163,8 +163,10 @@ def _family_comparison(summary: pd.DataFrame, run: RunMetadata, folder: Path, pa
 
 
 def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, folder: Path,
-                   panel: str, title: str, ylabel: str) -> list[Path]:
+                   panel: str, title: str, ylabel: str, zero_line: bool = False) -> list[Path]:
     figure, axes = _new_figure(run, f"({panel}) {title}")
+    if zero_line:
+        axes.axhline(0.0, color="black", linewidth=0.8)
     for phase in results.PHASES:
         part = curve[curve["phase"] == phase]
         if not part.empty:
@@ -234,7 +236,7 @@ def draw_figures(
                                   run, out, "e", "SafeTail access rate", "average access rate")
         written += _episode_curve(results.latency_deviation_by_episode(requests, run.beta),
                                   boundary, run, out, "f", "SafeTail latency deviation",
-                                  "average target − latency (s)")
+                                  "average target − latency (s)", zero_line=True)
         written += _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
                                   run, out, "g", "SafeTail |reward|", "average |reward|")
     return written

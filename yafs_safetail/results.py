@@ -952,6 +952,35 @@ def aggregate_summaries(directories: Sequence[str | os.PathLike[str]]) -> pd.Dat
     return pd.DataFrame(rows, columns=["method", "metric", "mean", "ci_low", "ci_high", "n_seeds"])
 
 
+def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
+    """Markdown table of :func:`aggregate_summaries`: one row per method, ``mean [95% interval]``.
+
+    Args:
+        stats: from :func:`aggregate_summaries`.
+        digits: decimals shown.
+
+    Returns:
+        Markdown text ending with a newline.
+    """
+    header = ["method", "seeds", *[PERCENTILE_NAMES[p] + " (s)" for p in PERCENTILES],
+              "mean access rate", "mean target (s)"]
+    metrics = [f"p{p}_s" for p in PERCENTILES] + ["mean_access_rate", "mean_target_s"]
+    rows = []
+    for method in sort_methods(stats["method"]):
+        part = stats[stats["method"] == method].set_index("metric")
+        row = [method, str(int(part["n_seeds"].max()))]
+        for metric in metrics:
+            cell = _fmt(part.loc[metric, "mean"], digits)
+            if not math.isnan(part.loc[metric, "ci_low"]):
+                cell += (f" [{part.loc[metric, 'ci_low']:.{digits}f}, "
+                         f"{part.loc[metric, 'ci_high']:.{digits}f}]")
+            row.append(cell)
+        rows.append(row)
+    lines = ["Test phase; mean over seeds [95% t-interval over seeds].", "",
+             *_table(header, rows)]
+    return "\n".join(lines) + "\n"
+
+
 AGREE_TOLERANCE = 0.05
 UNITY_TOLERANCE = 0.02
 
@@ -964,9 +993,9 @@ def _difference_note(mean: float, low: float, high: float, paper: float, method:
         return "not measured in these runs"
     if not math.isnan(low):
         if low <= paper <= high:
-            return "agrees: paper value inside our 95% interval"
+            return "consistent: paper value inside our 95% interval"
     elif abs(mean / paper - 1) <= AGREE_TOLERANCE:
-        return f"agrees within {AGREE_TOLERANCE:.0%} (single seed, no interval)"
+        return f"close: within {AGREE_TOLERANCE:.0%} (single seed, no interval)"
 
     def side(value: float) -> int:
         return 0 if abs(value - 1) <= UNITY_TOLERANCE else (1 if value > 1 else -1)
@@ -988,8 +1017,9 @@ def aggregate_speedups(directories: Sequence[str | os.PathLike[str]]) -> pd.Data
 
     The ratio is computed within each seed first and then averaged, so the interval reflects
     the seed-to-seed spread of the ratio itself. ``note`` compares with the paper: inside our
-    interval ("agrees"); with one seed, within 5% ("agrees"); otherwise "differs in size" when
-    both sit on the same side of 1 (±2% counts as equal) and "differs in direction" when not.
+    interval ("consistent"; a wide interval makes this weak, so read it with the interval);
+    with one seed, within 5% ("close"); otherwise "differs in size" when both sit on the same
+    side of 1 (±2% counts as equal) and "differs in direction" when not.
 
     Args:
         directories: run folders of one use case, one per seed.
