@@ -13,8 +13,10 @@ The paper's baselines (§V-B) are subclasses: :class:`Oracle`, :class:`RandX`,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -23,6 +25,7 @@ import numpy as np
 
 from yafs_safetail.edge.model import SINK_MODULE, EdgeModel
 from yafs_safetail.edge.observation import Observation
+from yafs_safetail.policy import StateScales, encode_state, reward, subset_of
 from yafs_safetail.yafs.selection import Selection
 
 if TYPE_CHECKING:
@@ -54,6 +57,8 @@ class RequestRecord:
         propagation_s: Eq. 1 propagation terms of the winning copy (NaN if fallback).
         download_s: Eq. 1 downloading terms of the winning copy (NaN if fallback).
         compute_s: Eq. 1 compute term of the winning copy (NaN if fallback).
+        reward: the Eq. 5 reward (SafeTail; NaN for methods that do not learn).
+        epsilon: SafeTail's exploration rate when it decided (NaN for other methods).
     """
 
     method: str
@@ -71,6 +76,8 @@ class RequestRecord:
     propagation_s: float
     download_s: float
     compute_s: float
+    reward: float = math.nan
+    epsilon: float = math.nan
 
     @property
     def n_selected(self) -> int:
@@ -125,8 +132,13 @@ class SubsetSelection(Selection):
         """The server indices (0..n-1) to send step ``step``'s request to (non-empty)."""
         raise NotImplementedError(f"{type(self).__name__} must implement choose_subset")
 
-    def request_completed(self, record: RequestRecord, observation: Observation) -> None:
-        """Called for every completed request with the ω^t its decision saw (override)."""
+    def request_completed(self, record: RequestRecord, observation: Observation) -> RequestRecord | None:
+        """Called for every completed request with the ω^t its decision saw (override).
+
+        Returns:
+            None to keep ``record``, or a replacement (e.g. with the reward filled in).
+        """
+        return None
 
     # ------------------------------------------------------------------ YAFS plumbing
     def _resolve_processes(self, app_name: Any, alloc_des: dict[int, Any], alloc_module: dict) -> None:
@@ -199,7 +211,7 @@ class SubsetSelection(Selection):
             download_s=download_s,
             compute_s=compute_s,
         )
-        self.request_completed(record, observation)
+        record = self.request_completed(record, observation) or record
         self._on_record(record)
         model.forget_request(outcome.request_id)
 
@@ -286,6 +298,68 @@ class MinPropX(SubsetSelection):
 
     def choose_subset(self, step: int, observation: Observation) -> tuple[int, ...]:
         return self._subset
+
+
+class SafeTailSelection(SubsetSelection):
+    """SafeTail (§III): the learned policy picks each request's subset of edge servers.
+
+    ``choose_subset`` encodes ω^t, asks the learner for an action (ε-greedy per Eq. 3 when
+    ``explore``) and maps it to its subset; when the request completes, the Eq. 5 reward of
+    L_R against τ goes into the record and, when ``learn``, back to the learner as the tuple
+    (ω^t, A^{t+1}, R^{t+1}) (a training round every κ tuples).
+
+    Args:
+        edge_model: the run's edge model.
+        learner: the :class:`~yafs_safetail.policy.learner.SafeTailLearner`.
+        scales: the state normalisation (``StateScales.for_use_case``).
+        explore: ε-greedy exploration (training phase) or always the argmax (testing).
+        learn: feed completed requests back to the learner.
+        **kwargs: see :class:`SubsetSelection`.
+
+    Attributes:
+        decision_time_s: wall time spent in encoding states and choosing actions.
+        training_time_s: wall time spent in ``learner.observe`` (storing and training).
+    """
+
+    def __init__(self, edge_model: EdgeModel, learner: Any, scales: StateScales, *,
+                 explore: bool, learn: bool, **kwargs: Any) -> None:
+        if learner.n_servers != edge_model.n_servers:
+            raise SelectionError(
+                f"SafeTail: the policy is for {learner.n_servers} servers, the topology has "
+                f"{edge_model.n_servers}"
+            )
+        super().__init__(edge_model, **kwargs)
+        self.learner = learner
+        self.scales = scales
+        self.explore = explore
+        self.learn = learn
+        self.delta = learner.config.delta
+        self.decision_time_s = 0.0
+        self.training_time_s = 0.0
+        self._decisions: dict[int, tuple[np.ndarray, int, float]] = {}
+
+    def default_name(self) -> str:
+        return "SafeTail"
+
+    def choose_subset(self, step: int, observation: Observation) -> tuple[int, ...]:
+        started = time.perf_counter()
+        state = encode_state(observation, self.scales)
+        epsilon = self.learner.epsilon if self.explore else 0.0
+        action = self.learner.act(state, explore=self.explore)
+        self._decisions[step] = (state, action, epsilon)
+        subset = subset_of(action, self.edge_model.n_servers)
+        self.decision_time_s += time.perf_counter() - started
+        return subset
+
+    def request_completed(self, record: RequestRecord, observation: Observation) -> RequestRecord:
+        state, action, epsilon = self._decisions.pop(record.step)
+        value = reward(record.latency_s, record.target_s, record.n_selected, record.n_servers,
+                       self.delta)
+        if self.learn:
+            started = time.perf_counter()
+            self.learner.observe(state, action, value)
+            self.training_time_s += time.perf_counter() - started
+        return dataclasses.replace(record, reward=value, epsilon=epsilon)
 
 
 _BASELINE_PATTERN = re.compile(r"^(Oracle|Rand|MinLoad|MinProp)(?:-(\d+))?$")

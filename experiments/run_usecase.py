@@ -1,0 +1,118 @@
+"""Train SafeTail on one use case, test it against the paper's baselines, write results and figures.
+
+    python experiments/run_usecase.py --uc 1                       # paper preset, full budget
+    python experiments/run_usecase.py --uc 2 --preset tuned --seed 3 --out results/uc2-tuned
+    python experiments/run_usecase.py --uc 1 --steps-scale 0.1     # a quick look
+    python experiments/run_usecase.py --uc 1 --policy results/uc1/policy.keras --out results/uc1-eval
+
+The output folder gets requests.csv (one row per request and method), summary.csv and
+summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
+each method's YAFS result CSVs under yafs/, and Figs. (a)-(g) under figures/ as PNG and PDF.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from yafs_safetail.cli import run_cli
+from yafs_safetail.experiment import (
+    DEFAULT_PLACEMENT,
+    DEFAULT_TOPOLOGY,
+    ExperimentConfig,
+    ExperimentError,
+    run_experiment,
+)
+from yafs_safetail.policy.presets import PRESET_NAMES
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports bad arguments as our one-line error (exit 2, no usage dump)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise ExperimentError(message)
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not value > 0 or value != value or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
+def _levels(text: str) -> tuple[int, ...]:
+    try:
+        levels = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not levels:
+        raise argparse.ArgumentTypeError("expected at least one level")
+    return levels
+
+
+def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
+    parser = _Parser(prog="run_usecase.py", description=__doc__,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--uc", type=int, required=True, choices=(1, 2, 3),
+                        help="use case: 1 object detection, 2 instance segmentation, 3 noise removal")
+    parser.add_argument("--preset", default="paper", choices=PRESET_NAMES,
+                        help="learner preset (default: paper = Table I verbatim)")
+    parser.add_argument("--seed", type=_seed, default=0, help="the run's seed (default 0)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="results folder (default results/uc<N>-<preset>-s<seed>)")
+    parser.add_argument("--steps-scale", type=_positive_float, default=1.0,
+                        help="fraction of the preset's training and testing steps (default 1)")
+    parser.add_argument("--redundancy", type=_levels, default=(1, 2, 3),
+                        help="levels x of Rand-x, MinLoad-x, MinProp-x (default 1,2,3)")
+    parser.add_argument("--topology", type=Path, default=DEFAULT_TOPOLOGY,
+                        help="YAFS topology JSON (default topologies/paper_5servers.json)")
+    parser.add_argument("--placement", type=Path, default=None,
+                        help="YAFS placement JSON (default: placements/<topology file name>)")
+    parser.add_argument("--policy", type=Path, default=None,
+                        help="evaluate this saved policy (.keras) without training")
+    parser.add_argument("--no-yafs-csv", action="store_true", help="skip the per-method YAFS CSVs")
+    parser.add_argument("--no-figures", action="store_true", help="skip the figures")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    args = parser.parse_args(argv)
+
+    placement = args.placement
+    if placement is None:
+        placement = (DEFAULT_PLACEMENT if args.topology == DEFAULT_TOPOLOGY
+                     else DEFAULT_PLACEMENT.parent / args.topology.name)
+    out = args.out or Path("results") / f"uc{args.uc}-{args.preset}-s{args.seed}"
+    command = shlex.join(["python", "experiments/run_usecase.py", *(sys.argv[1:] if argv is None else argv)])
+    return ExperimentConfig(
+        use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=out,
+        topology=args.topology, placement=placement, steps_scale=args.steps_scale,
+        redundancy_levels=args.redundancy, policy=args.policy,
+        write_yafs_csv=not args.no_yafs_csv, figures=not args.no_figures,
+        progress=not args.quiet and sys.stderr.isatty(), command=command,
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    config = parse_args(argv)
+    report = run_experiment(config)
+    print((report.out_dir / "summary.md").read_text(), end="")
+    print(f"\nresults: {report.out_dir}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run_cli(main))

@@ -1,0 +1,426 @@
+"""One SafeTail experiment: train SafeTail, then test it and every baseline on the same requests.
+
+The flow reads top to bottom in :func:`run_experiment`:
+
+1. check the configuration (use case, preset, seed, step scale, redundancy levels, output);
+2. load the scenario (topology + placement JSON) and the traces;
+3. draw the two phases' worlds (common random numbers: every method of a phase replays the
+   same requests, trace rows and per-server draws);
+4. train SafeTail for the preset's training steps (ε-greedy, a training round every κ tuples);
+5. test SafeTail greedily (no exploration, no training) and every baseline on the test world;
+6. write the results folder under a temporary name, then rename it into place, so a failed
+   run never leaves half-written results and never destroys an earlier run's folder.
+
+Every method runs its own YAFS-compatible :class:`~yafs_safetail.yafs.core.Sim` with the
+edge model as its delay hooks and writes the YAFS result CSVs under ``yafs/``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+import time
+import zlib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import yafs_safetail
+from yafs_safetail import results
+from yafs_safetail.edge.model import EdgeModel, edge_application
+from yafs_safetail.edge.topology_io import EdgeScenario, load_scenario
+from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
+from yafs_safetail.edge.usecases import UseCase, get_use_case
+from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.placement import EdgePlacement
+from yafs_safetail.policy.presets import LearnerConfig, get_preset
+from yafs_safetail.policy.state import StateScales, state_dim
+from yafs_safetail.population import DEFAULT_STEP_INTERVAL_S, EdgePopulation
+from yafs_safetail.selection import (
+    RequestRecord,
+    SafeTailSelection,
+    SubsetSelection,
+    make_baseline,
+)
+from yafs_safetail.yafs.core import Sim
+from yafs_safetail.yafs.topology import Topology
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+DEFAULT_TOPOLOGY = REPOSITORY / "topologies" / "paper_5servers.json"
+DEFAULT_PLACEMENT = REPOSITORY / "placements" / "paper_5servers.json"
+POLICY_FILE = "policy.keras"
+YAFS_DIR = "yafs"
+#: Requests simulated between two progress-bar updates.
+PROGRESS_CHUNK_STEPS = 500
+
+
+class ExperimentError(ValueError):
+    """A bad experiment setting (one line naming the setting and what is wrong)."""
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """Everything one run depends on; the same config and seed give identical result files.
+
+    Attributes:
+        use_case: 1 object detection, 2 instance segmentation, 3 noise removal.
+        preset: learner preset, ``"paper"`` (Table I verbatim) or ``"tuned"``.
+        seed: the run's seed (non-negative integer); every random draw derives from it.
+        out_dir: the results folder (replaced atomically when the run succeeds).
+        topology: YAFS topology JSON (user, access point, edge servers).
+        placement: YAFS placement JSON (the service on each edge server, in index order).
+        traces_dir: folder with the trace CSVs and the compute models.
+        steps_scale: fraction of the preset's training and testing steps (for quick runs).
+        redundancy_levels: the x of Rand-x, MinLoad-x and MinProp-x.
+        step_interval_s: simulated time between two requests (one load-trace row).
+        write_yafs_csv: write each method's YAFS result CSVs under ``yafs/``.
+        figures: draw Figs. (a)-(g) into ``figures/``.
+        progress: show progress bars on stderr.
+        policy: a saved policy (``.keras``) to evaluate without training.
+        command: the command line, recorded in ``run.json``.
+    """
+
+    use_case: int = 1
+    preset: str = "paper"
+    seed: int = 0
+    out_dir: Path = Path("results/uc1")
+    topology: Path = DEFAULT_TOPOLOGY
+    placement: Path = DEFAULT_PLACEMENT
+    traces_dir: Path = DEFAULT_TRACE_DIR
+    steps_scale: float = 1.0
+    redundancy_levels: tuple[int, ...] = (1, 2, 3)
+    step_interval_s: float = DEFAULT_STEP_INTERVAL_S
+    write_yafs_csv: bool = True
+    figures: bool = True
+    progress: bool = True
+    policy: Path | None = None
+    command: str = ""
+
+
+@dataclass
+class ExperimentReport:
+    """What a finished run produced and where the time went (seconds of wall time)."""
+
+    out_dir: Path
+    summary: pd.DataFrame
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def baseline_names(redundancy_levels: Sequence[int]) -> list[str]:
+    """Oracle, then Rand-x, MinLoad-x, MinProp-x for every x."""
+    names = [results.ORACLE]
+    for family in ("Rand", "MinLoad", "MinProp"):
+        names += [f"{family}-{x}" for x in redundancy_levels]
+    return names
+
+
+def method_rng(seed: int, method: str) -> np.random.Generator:
+    """A method's own generator (Rand draws, MinLoad tie-breaks), independent per method."""
+    return np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(method.encode())]))
+
+
+def scaled_steps(steps: int, scale: float) -> int:
+    """``steps * scale`` rounded, at least one step."""
+    return max(1, round(steps * scale))
+
+
+def _check_config(config: ExperimentConfig) -> tuple[UseCase, LearnerConfig]:
+    use_case = get_use_case(config.use_case)
+    if isinstance(config.seed, bool) or not isinstance(config.seed, int) or config.seed < 0:
+        raise ExperimentError(f"--seed: expected a non-negative integer, got {config.seed!r}")
+    if not (isinstance(config.steps_scale, float | int) and math.isfinite(config.steps_scale)
+            and config.steps_scale > 0):
+        raise ExperimentError(f"--steps-scale: expected a positive number, got {config.steps_scale!r}")
+    base = get_preset(config.preset, use_case.number)
+    learner_config = get_preset(
+        config.preset, use_case.number,
+        train_steps=scaled_steps(base.train_steps, config.steps_scale),
+    )
+    if not config.redundancy_levels:
+        raise ExperimentError("--redundancy: give at least one level x")
+    return use_case, learner_config
+
+
+def _prepare_output(out_dir: Path) -> Path:
+    """A fresh temporary folder beside ``out_dir`` (the run is renamed into place at the end)."""
+    parent = out_dir.resolve().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise OSError(f"--out {out_dir}: cannot create {parent}: {error.strerror}") from None
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ExperimentError(f"--out {out_dir}: exists and is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OSError(f"--out {out_dir}: {parent} is not writable")
+    staging = parent / f".{out_dir.name}.partial-{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    return staging
+
+
+def _publish(staging: Path, out_dir: Path) -> None:
+    """Move the finished run into place; an older run in ``out_dir`` goes only after that."""
+    target = out_dir.resolve()
+    previous = None
+    if target.exists():
+        previous = target.parent / f".{target.name}.previous-{os.getpid()}"
+        shutil.rmtree(previous, ignore_errors=True)
+        os.replace(target, previous)
+    os.replace(staging, target)
+    if previous is not None:
+        shutil.rmtree(previous, ignore_errors=True)
+
+
+def simulate(
+    world: EdgeWorld,
+    scenario: EdgeScenario,
+    make_selection: Callable[[EdgeModel], SubsetSelection],
+    step_interval_s: float,
+    results_path: Path | None,
+    progress_label: str | None = None,
+) -> list[RequestRecord]:
+    """Run every request of ``world`` through a fresh Sim with the given selection.
+
+    Args:
+        world: the phase's pre-drawn world.
+        scenario: topology and placement.
+        make_selection: builds the method's selection on the run's edge model.
+        step_interval_s: time between requests.
+        results_path: YAFS results path prefix (None: no YAFS CSVs).
+        progress_label: show a progress bar with this label (None: silent).
+
+    Returns:
+        One record per request, in step order.
+    """
+    edge = EdgeModel(world)
+    topology = Topology()
+    topology.load(scenario.topology.data)
+    sim = Sim(
+        topology,
+        default_results_path=str(results_path) if results_path else None,
+        link_delay=edge,
+        service_model=edge,
+        write_results=results_path is not None,
+    )
+    selection = make_selection(edge)
+    population = EdgePopulation(scenario.user_node, step_interval_s)
+    sim.deploy_app(
+        edge_application(scenario.app_name, scenario.module_name),
+        EdgePlacement(scenario.placement),
+        population,
+        selection,
+    )
+    n_steps = world.n_steps
+    bar = None
+    if progress_label is not None:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_steps, desc=progress_label, unit="req", file=sys.stderr, leave=False)
+    done = 0
+    while done < n_steps:
+        # Chunked runs only to move the progress bar; Sim.run continues the same simulation.
+        done = min(n_steps, done + PROGRESS_CHUNK_STEPS)
+        sim.run(until=population.until_s(done))
+        if bar is not None:
+            bar.update(len(selection.records) - bar.n)
+    if bar is not None:
+        bar.close()
+    if len(selection.records) != n_steps:
+        raise RuntimeError(
+            f"{selection.name}: {len(selection.records)} of {n_steps} requests completed; "
+            f"step_interval_s={step_interval_s} may be shorter than a request's latency"
+        )
+    return selection.records
+
+
+def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: int) -> pd.DataFrame:
+    """The ``requests.csv`` rows of one method and phase."""
+    frame = pd.DataFrame(
+        {
+            "method": [r.method for r in records],
+            "phase": phase,
+            "episode": [r.step // episode_steps for r in records],
+            "step": [r.step for r in records],
+            "request_id": [r.request_id for r in records],
+            "latency_s": [r.latency_s for r in records],
+            "target_s": [r.target_s for r in records],
+            "deviation_s": [r.deviation_s for r in records],
+            "n_selected": [r.n_selected for r in records],
+            "access_rate": [r.access_rate for r in records],
+            "servers": [";".join(map(str, r.servers)) for r in records],
+            "reward": [r.reward for r in records],
+            "refused": [r.refused for r in records],
+            "fallback": [int(r.fallback) for r in records],
+            "upload_s": [r.upload_s for r in records],
+            "propagation_s": [r.propagation_s for r in records],
+            "download_s": [r.download_s for r in records],
+            "compute_s": [r.compute_s for r in records],
+            "epsilon": [r.epsilon for r in records],
+        }
+    )
+    return frame
+
+
+def run_experiment(config: ExperimentConfig) -> ExperimentReport:
+    """Run one use case end to end and write its results folder (see docs/results.md).
+
+    Raises:
+        ValueError: a bad setting or input file (one-line message naming it).
+        OSError: the output folder cannot be written.
+    """
+    timings = {"simulation": 0.0, "decisions": 0.0, "training": 0.0, "plotting": 0.0, "setup": 0.0}
+    started = time.perf_counter()
+
+    # 1. configuration and inputs
+    use_case, learner_config = _check_config(config)
+    scenario = load_scenario(config.topology, config.placement)
+    for x in config.redundancy_levels:
+        if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= scenario.n_servers:
+            raise ExperimentError(
+                f"--redundancy: x={x!r} must be an integer in 1..{scenario.n_servers} "
+                f"(the servers in {config.topology})"
+            )
+    inputs = load_inputs(use_case, config.traces_dir)
+    staging = _prepare_output(config.out_dir)
+    try:
+        report = _run_into(staging, config, use_case, learner_config, scenario, inputs, timings, started)
+        _publish(staging, config.out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    report.out_dir = config.out_dir
+    return report
+
+
+def _run_into(staging, config, use_case, learner_config, scenario, inputs, timings, started):
+    from yafs_safetail.policy.learner import SafeTailLearner
+
+    train_steps = learner_config.train_steps
+    test_steps = scaled_steps(learner_config.test_steps, config.steps_scale)
+    episode_steps = learner_config.episode_steps
+
+    # 2. the two phases' worlds (common random numbers for every method of a phase)
+    def world(phase: str, n_steps: int) -> EdgeWorld:
+        return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
+                           episode_steps=episode_steps)
+
+    train_world = world("train", train_steps) if config.policy is None else None
+    test_world = world("test", test_steps)
+
+    # 3. the learner: fresh, or a saved policy evaluated without training
+    scales = StateScales.for_use_case(use_case.number)
+    if config.policy is None:
+        learner = SafeTailLearner(
+            scenario.n_servers,
+            state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
+            learner_config,
+            config.seed,
+            metadata={"use_case": use_case.number, "topology": str(config.topology)},
+        )
+    else:
+        learner = SafeTailLearner.load(config.policy, training=False)
+        if learner.n_servers != scenario.n_servers:
+            raise ExperimentError(
+                f"--policy {config.policy}: trained for {learner.n_servers} servers, "
+                f"the topology has {scenario.n_servers}"
+            )
+        learner_config = learner.config
+    timings["setup"] = time.perf_counter() - started
+
+    yafs_dir = staging / YAFS_DIR
+    if config.write_yafs_csv:
+        yafs_dir.mkdir()
+
+    def results_path(method: str, phase: str) -> Path | None:
+        return yafs_dir / f"{method}_{phase}" if config.write_yafs_csv else None
+
+    def label(method: str, phase: str) -> str | None:
+        return f"UC{use_case.number} {method} {phase}" if config.progress else None
+
+    frames = []
+
+    # 4. SafeTail training
+    def safetail(explore: bool, learn: bool) -> Callable[[EdgeModel], SubsetSelection]:
+        return lambda edge: SafeTailSelection(edge, learner, scales, explore=explore, learn=learn)
+
+    selections: list[SafeTailSelection] = []
+
+    def tracked(factory):
+        def build(edge):
+            selection = factory(edge)
+            selections.append(selection)
+            return selection
+        return build
+
+    if train_world is not None:
+        t0 = time.perf_counter()
+        records = simulate(train_world, scenario, tracked(safetail(True, True)),
+                           config.step_interval_s, results_path(results.SAFETAIL, "train"),
+                           label(results.SAFETAIL, "train"))
+        timings["simulation"] += time.perf_counter() - t0
+        frames.append(records_frame(records, "train", episode_steps))
+
+    # 5. testing: SafeTail greedy, then every baseline, all on the same test world
+    t0 = time.perf_counter()
+    records = simulate(test_world, scenario, tracked(safetail(False, False)),
+                       config.step_interval_s, results_path(results.SAFETAIL, "test"),
+                       label(results.SAFETAIL, "test"))
+    frames.append(records_frame(records, "test", episode_steps))
+    methods = [results.SAFETAIL]
+    for name in baseline_names(config.redundancy_levels):
+        rng = method_rng(config.seed, name)
+        records = simulate(test_world, scenario,
+                           lambda edge, name=name, rng=rng: make_baseline(name, edge, rng),
+                           config.step_interval_s, results_path(name, "test"), label(name, "test"))
+        frames.append(records_frame(records, "test", episode_steps))
+        methods.append(name)
+    timings["simulation"] += time.perf_counter() - t0
+    for selection in selections:
+        timings["decisions"] += selection.decision_time_s
+        timings["training"] += selection.training_time_s
+    # Simulation time is reported without the learner's share.
+    timings["simulation"] -= timings["decisions"] + timings["training"]
+
+    # 6. results files, the policy, the figures
+    requests = pd.concat(frames, ignore_index=True)
+    run = results.RunMetadata(
+        use_case=use_case.number,
+        use_case_name=use_case.description,
+        preset=learner_config.name,
+        seed=config.seed,
+        n_servers=scenario.n_servers,
+        beta=learner_config.beta,
+        train_steps=0 if train_world is None else train_steps,
+        test_steps=test_steps,
+        topology=os.path.relpath(config.topology, REPOSITORY)
+        if Path(config.topology).resolve().is_relative_to(REPOSITORY) else str(config.topology),
+        methods=methods,
+        package_version=yafs_safetail.__version__,
+        command=config.command,
+        extra={
+            "steps_scale": config.steps_scale,
+            "step_interval_s": config.step_interval_s,
+            "episode_steps": episode_steps,
+            "fallback_latency_s": test_world.fallback_latency_s,
+            "nu": use_case.nu,
+            "learner": learner_config.to_dict(),
+            "training_rounds": learner.n_training_rounds,
+            "final_epsilon": learner.epsilon,
+            "policy_source": str(config.policy) if config.policy else POLICY_FILE,
+        },
+    )
+    summary = results.write_results(staging, requests, run)
+    learner.save(staging / POLICY_FILE)
+    if config.figures:
+        from yafs_safetail.figures import draw_figures
+
+        t0 = time.perf_counter()
+        draw_figures(staging)
+        timings["plotting"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - started
+    return ExperimentReport(out_dir=staging, summary=summary, timings_s=timings)
