@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from test_results import make_requests, write_run_folder
+from test_results import make_requests, make_run, write_run_folder
 
 from yafs_safetail import figures, results
 
@@ -58,6 +58,34 @@ def test_run_without_a_baseline_family(tmp_path):
     written = figures.draw_figures(tmp_path, requests, run)
     assert len(written) == len(FIGURE_FILES)
     assert not (tmp_path / "run.json").exists()  # drawn from the given tables alone
+
+
+def test_figure_contents():
+    requests = make_requests(np.random.default_rng(24), n_train=60, n_test=40)
+    run = make_run(use_case=2, beta=20)
+    run.preset = "tuned"
+    built = figures.build_figures(requests, run)
+    assert sorted(built) == list("abcdefg")
+    for panel, figure in built.items():
+        title = figure.axes[0].get_title()
+        assert title.startswith(f"({panel})")
+        assert "use case 2" in title and "preset tuned" in title
+    legend = {t.get_text() for t in built["a"].axes[0].get_legend().get_texts()}
+    assert legend == {"SafeTail", "Oracle", "Rand-1", "MinLoad-1", "MinProp-1", "average target"}
+    target_line = built["a"].axes[0].get_lines()[0]
+    mean_target = requests.query("method == 'SafeTail' and phase == 'test'")["target_s"].mean()
+    assert target_line.get_ydata()[0] == pytest.approx(mean_target)
+    legend_b = [t.get_text() for t in built["b"].axes[0].get_legend().get_texts()]
+    assert legend_b == ["SafeTail", "Rand-1", "Rand-2", "Rand-3"]
+    safetail_bars = built["b"].axes[0].containers[0]
+    summary = results.summarize(requests)
+    expected = summary.iloc[0][["p50_s", "p90_s", "p95_s", "p99_s"]].astype(float).to_numpy()
+    np.testing.assert_allclose([bar.get_height() for bar in safetail_bars], expected)
+    lines_e = built["e"].axes[0].get_lines()
+    train_curve = [ln for ln in lines_e if ln.get_label() == "training"][0]
+    np.testing.assert_allclose(train_curve.get_xdata(), [1, 2, 3])
+    boundary = [ln for ln in lines_e if ln.get_linestyle() == ":"][0]
+    assert boundary.get_xdata()[0] == pytest.approx(3.0)
 
 
 def test_cli_redraws(drawn_folder):

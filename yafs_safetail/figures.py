@@ -134,8 +134,8 @@ def _average_target_s(requests: pd.DataFrame) -> float:
     return float((safetail if not safetail.empty else test)["target_s"].mean())
 
 
-def _latency_comparison(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata,
-                        folder: Path) -> list[Path]:
+def _latency_comparison(requests: pd.DataFrame, summary: pd.DataFrame,
+                        run: RunMetadata) -> Figure:
     present = list(summary["method"])
     methods = [m for m in (results.SAFETAIL, results.ORACLE) if m in present]
     methods += [b for b in results.baselines_of(present) if results.parse_method(b)[1] == 1]
@@ -145,11 +145,11 @@ def _latency_comparison(requests: pd.DataFrame, summary: pd.DataFrame, run: RunM
                  label="average target")
     axes.legend(ncols=3, loc="upper left")
     axes.margins(y=0.25)
-    return _save(figure, folder, FIGURE_STEMS["a"])
+    return figure
 
 
-def _family_comparison(summary: pd.DataFrame, run: RunMetadata, folder: Path, panel: str,
-                       family: str) -> list[Path]:
+def _family_comparison(summary: pd.DataFrame, run: RunMetadata, panel: str,
+                       family: str) -> Figure:
     present = list(summary["method"])
     levels = results.baselines_of(present, family)
     title = f"({panel}) SafeTail vs {family}-x"
@@ -159,11 +159,11 @@ def _family_comparison(summary: pd.DataFrame, run: RunMetadata, folder: Path, pa
     _percentile_bars(axes, summary, [results.SAFETAIL, *levels])
     axes.legend(ncols=4, loc="upper left")
     axes.margins(y=0.2)
-    return _save(figure, folder, FIGURE_STEMS[panel])
+    return figure
 
 
-def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, folder: Path,
-                   panel: str, title: str, ylabel: str, zero_line: bool = False) -> list[Path]:
+def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, panel: str,
+                   title: str, ylabel: str, zero_line: bool = False) -> Figure:
     figure, axes = _new_figure(run, f"({panel}) {title}")
     if zero_line:
         axes.axhline(0.0, color="black", linewidth=0.8)
@@ -177,7 +177,7 @@ def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, folde
     axes.set_xlabel(f"average episode number (steps / β, β = {run.beta})")
     axes.set_ylabel(ylabel)
     axes.legend(loc="best")
-    return _save(figure, folder, FIGURE_STEMS[panel])
+    return figure
 
 
 def load_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
@@ -198,6 +198,32 @@ def load_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMet
     if not (requests["phase"] == "test").any():
         raise ResultsFileError(f"{file}: column phase: no test rows")
     return requests, run
+
+
+def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]:
+    """Build panels (a)-(g) in memory, without writing anything.
+
+    Args:
+        requests: a checked requests table (see :func:`load_inputs`).
+        run: the run's metadata.
+
+    Returns:
+        Panel letter ("a".."g") to its matplotlib Figure (on an Agg canvas).
+    """
+    summary = results.summarize(requests, preset=run.preset)
+    boundary = results.train_test_boundary(requests, run.beta)
+    with matplotlib.rc_context(_STYLE):
+        built = {"a": _latency_comparison(requests, summary, run)}
+        for panel, family in zip("bcd", results.BASELINE_FAMILIES, strict=True):
+            built[panel] = _family_comparison(summary, run, panel, family)
+        built["e"] = _episode_curve(results.access_rate_by_episode(requests, run.beta), boundary,
+                                    run, "e", "SafeTail access rate", "average access rate")
+        built["f"] = _episode_curve(results.latency_deviation_by_episode(requests, run.beta),
+                                    boundary, run, "f", "SafeTail latency deviation",
+                                    "average target − latency (s)", zero_line=True)
+        built["g"] = _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
+                                    run, "g", "SafeTail |reward|", "average |reward|")
+    return built
 
 
 def draw_figures(
@@ -223,22 +249,13 @@ def draw_figures(
         loaded_requests, loaded_run = load_inputs(folder)
         requests = loaded_requests if requests is None else requests
         run = loaded_run if run is None else run
-    summary = results.summarize(requests, preset=run.preset)
+    built = build_figures(requests, run)
     out = folder / FIGURES_DIR
     out.mkdir(exist_ok=True)
-    boundary = results.train_test_boundary(requests, run.beta)
     written: list[Path] = []
     with matplotlib.rc_context(_STYLE):
-        written += _latency_comparison(requests, summary, run, out)
-        for panel, family in zip("bcd", results.BASELINE_FAMILIES, strict=True):
-            written += _family_comparison(summary, run, out, panel, family)
-        written += _episode_curve(results.access_rate_by_episode(requests, run.beta), boundary,
-                                  run, out, "e", "SafeTail access rate", "average access rate")
-        written += _episode_curve(results.latency_deviation_by_episode(requests, run.beta),
-                                  boundary, run, out, "f", "SafeTail latency deviation",
-                                  "average target − latency (s)", zero_line=True)
-        written += _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
-                                  run, out, "g", "SafeTail |reward|", "average |reward|")
+        for panel, figure in built.items():
+            written += _save(figure, out, FIGURE_STEMS[panel])
     return written
 
 
