@@ -193,3 +193,32 @@ def test_outcomes_without_result_files(tmp_path):
     sim.run(1000)
     assert len(selection.completed) == 9
     assert not (tmp_path / "edge.csv").exists()
+
+
+def test_copies_to_stopped_or_unknown_processes_are_lost(tmp_path):
+    topology = line_topology([(0, 1, 1, 1)], {0: 1.0, 1: 10.0})
+    sim = Sim(topology, write_results=False)
+    selection = MulticastAll()
+    sim.deploy_app(consume_app(100), FixedPlacement("Svc", [1, 1]), UserPopulation(0, "Req", 100), selection)
+    sim.run(50)  # allocates the two replicas (process ids 1 and 2)
+    sim.stop_process(2)
+    sim.run(150)
+    outcome = selection.completed[0]
+    assert [c.status for c in outcome.copies] == ["consumed", "lost"]
+    assert sim.lost_messages == 1
+
+
+def test_failed_link_is_rerouted_by_the_selection(tmp_path):
+    from yafs_safetail.yafs.path_routing import DeviceSpeedAwareRouting
+
+    topology = line_topology([(0, 1, 1, 1), (1, 2, 1, 1), (1, 3, 1, 1), (3, 2, 1, 1)],
+                             {0: 1.0, 1: 1.0, 2: 10.0, 3: 1.0})
+    sim = Sim(topology, default_results_path=str(tmp_path / "f"))
+    selection = DeviceSpeedAwareRouting()
+    sim.deploy_app(consume_app(100), FixedPlacement("Svc", [2]), UserPopulation(0, "Req", 100), selection)
+    # Remove the 1-2 link while the message is on its first hop.
+    sim.deploy_monitor("cut", lambda: topology.G.remove_edge(1, 2), deterministic_distribution(100.5))
+    sim.run(150)
+    hops = [tuple(r.split(",")[2:4]) for r in (tmp_path / "f_link.csv").read_text().splitlines()[1:]]
+    assert hops == [("0", "1"), ("1", "3"), ("3", "2")]
+    assert len((tmp_path / "f.csv").read_text().splitlines()) == 2

@@ -91,16 +91,25 @@ class _Lineage:
 
 
 class _Replica:
-    """A module replica or sink: one DES process id with its FIFO queue."""
+    """A module replica or sink: one DES process id with its FIFO queue.
 
-    __slots__ = ("des", "app_name", "module", "registers", "is_sink", "queue", "busy")
+    ``outputs`` maps each accepted message name to its transmission rules
+    ``(message_out, filter, filter_params, module_dest, p)``, in registration order.
+    """
+
+    __slots__ = ("des", "app_name", "module", "outputs", "is_sink", "queue", "busy")
 
     def __init__(self, des: int, app_name: Any, module: str,
                  registers: list[dict[str, Any]], is_sink: bool) -> None:
         self.des = des
         self.app_name = app_name
         self.module = module
-        self.registers = registers
+        self.outputs: dict[str, list[tuple[Any, Any, dict[str, Any], list[str], list[float]]]] = {}
+        for register in registers:
+            self.outputs.setdefault(register["message_in"].name, []).append((
+                register["message_out"], register["dist"], register.get("param", {}),
+                register.get("module_dest") or [], register.get("p") or [],
+            ))
         self.is_sink = is_sink
         self.queue: deque[Message] = deque()
         self.busy = False
@@ -222,6 +231,9 @@ class Sim:
         """Replace the admission/service model."""
         self.service_model = service_model
         self._concurrent = bool(service_model.concurrent)
+        self._admit = service_model.admit
+        self._service_time = service_model.service_time_s
+        self._release = service_model.release
 
     # ----------------------------------------------------------------- ids
 
@@ -401,8 +413,12 @@ class Sim:
                     self._settle(lineage)
                 self._lineage_message_done(lineage)
             return
+        if msg.name not in replica.outputs:
+            # YAFS: a replica ignores messages none of its transmissions consume.
+            self._drop(msg)
+            return
         node = self.alloc_DES[replica.des]
-        if not self.service_model.admit(self, msg, replica.des, node, replica.module):
+        if not self._admit(self, msg, replica.des, node, replica.module):
             self.refused_copies += 1
             lineage = msg._lineage
             if lineage is not None:
@@ -419,7 +435,7 @@ class Sim:
     def _start_service(self, replica: _Replica, msg: Message) -> None:
         replica.busy = True
         node = self.alloc_DES[replica.des]
-        service = self.service_model.service_time_s(self, msg, replica.des, node, replica.module)
+        service = self._service_time(self, msg, replica.des, node, replica.module)
         self._record(replica, msg, self.NODE_METRIC, service, self.env._now)
         heappush(self._queue, (self.env._now + service, NORMAL, next(self._eid),
                                _Wake(self._service_end_callbacks, msg, replica)))
@@ -428,7 +444,7 @@ class Sim:
         msg = event.item
         replica = event.aux
         node = self.alloc_DES.get(replica.des)
-        self.service_model.release(self, msg, replica.des, node, replica.module)
+        self._release(self, msg, replica.des, node, replica.module)
         self._emit_outputs(replica, msg)
         if not self._concurrent:
             replica.busy = False
@@ -439,22 +455,17 @@ class Sim:
         """Send every output ``msg`` triggers at ``replica`` (YAFS transmission rules)."""
         lineage = msg._lineage
         if self.des_process_running.get(replica.des, False):
-            for register in replica.registers:
-                if register["message_in"].name != msg.name:
-                    continue
-                out = register["message_out"]
+            for out, dist, param, destinations, probabilities in replica.outputs[msg.name]:
                 if not out:
                     continue
-                dist = register["dist"]
-                if dist and not self._accepts(dist, register["param"]):
+                if dist and not self._accepts(dist, param):
                     continue
-                destinations = register["module_dest"]
                 if not destinations:
                     self._send(replica.app_name, self._derive(out, msg, replica.des), replica.des,
                                None, lineage)
                     continue
                 for index, module_dst in enumerate(destinations):
-                    if self.rng.random() <= register["p"][index]:
+                    if self.rng.random() <= probabilities[index]:
                         derived = self._derive(out, msg, replica.des)
                         derived.dst = module_dst
                         self._send(replica.app_name, derived, replica.des, None, lineage)
