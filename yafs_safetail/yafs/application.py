@@ -40,7 +40,12 @@ class Message:
 
     The class keeps a ``__dict__`` (not ``__slots__``) because YAFS scripts attach their
     own attributes to messages; copies are made with :meth:`clone`, a shallow dict copy.
+    While a message crosses a link the core schedules the message itself as the simpy event
+    of the hop's end (saving one object per hop), hence ``_ok`` and ``callbacks``.
     """
+
+    _ok = True
+    callbacks = None
 
     def __init__(
         self,

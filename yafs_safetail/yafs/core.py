@@ -355,10 +355,11 @@ class Sim:
             rows.append((msg.id, "LINK", src, dst, msg.app_name, latency, msg.name, now,
                          msg.bytes, self._in_flight_hops))
         self._in_flight_hops += 1
-        heappush(self._queue, (now + delay, NORMAL, next(self._eid), _Wake(self._hop_end_callbacks, msg)))
+        # The message itself is the hop-end event (see Message: simpy needs callbacks/_ok).
+        msg.callbacks = self._hop_end_callbacks
+        heappush(self._queue, (now + delay, NORMAL, next(self._eid), msg))
 
-    def _on_hop_end(self, event: _Wake) -> None:
-        msg = event.item
+    def _on_hop_end(self, msg: Message) -> None:
         self._in_flight_hops -= 1
         hop = msg._hop = msg._hop + 1
         if hop >= len(msg.path) - 1:
