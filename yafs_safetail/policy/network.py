@@ -67,6 +67,8 @@ def build_network(
         loss="categorical_crossentropy",
         jit_compile=False,
     )
+    # Build Adam's slots now so that a policy saved before its first round reloads cleanly.
+    model.optimizer.build(model.trainable_variables)
     return model
 
 
