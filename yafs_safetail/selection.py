@@ -121,18 +121,28 @@ class SubsetSelection(Selection):
         self.name = name or self.default_name()
         self.records: list[RequestRecord] = []
         self._on_record = on_record if on_record is not None else self.records.append
-        self._pending: dict[Any, tuple[int, tuple[int, ...], Observation]] = {}
+        self._pending: dict[Any, tuple[int, tuple[int, ...], Observation | None]] = {}
         self._service_des: list[Any] | None = None
         self._sink_des: Any = None
+        # Routes are fixed per subset (requests) and per server node (replies): build each once.
+        self._request_routes: dict[tuple[int, ...], tuple[tuple[int, ...], tuple[list[list[Any]], list[Any]]]] = {}
+        self._reply_routes: dict[Any, tuple[list[list[Any]], list[Any]]] = {}
+
+    #: Whether :meth:`choose_subset` reads ω^t; methods that do not get ``None`` instead
+    #: (building ω^t is a large share of a request's cost).
+    observes: bool = True
 
     def default_name(self) -> str:
         return type(self).__name__
 
-    def choose_subset(self, step: int, observation: Observation) -> tuple[int, ...]:
-        """The server indices (0..n-1) to send step ``step``'s request to (non-empty)."""
+    def choose_subset(self, step: int, observation: Observation | None) -> tuple[int, ...]:
+        """The server indices (0..n-1) to send step ``step``'s request to (non-empty).
+
+        ``observation`` is ω^t, or None when the class sets ``observes = False``.
+        """
         raise NotImplementedError(f"{type(self).__name__} must implement choose_subset")
 
-    def request_completed(self, record: RequestRecord, observation: Observation) -> RequestRecord | None:
+    def request_completed(self, record: RequestRecord, observation: Observation | None) -> RequestRecord | None:
         """Called for every completed request with the ω^t its decision saw (override).
 
         Returns:
@@ -163,12 +173,21 @@ class SubsetSelection(Selection):
         model = self.edge_model
         if message.dst == model.service_module:
             step = model.begin_request(message.id)
-            observation = model.observe(step)
-            subset = self._checked(self.choose_subset(step, observation))
-            self._pending[message.id] = (step, subset, observation)
-            service_des = self._service_des
-            return model.request_paths(subset), [service_des[i] for i in subset]
-        return [model.reply_path(topology_src)], [self._sink_des]
+            observation = model.observe(step) if self.observes else None
+            chosen = self.choose_subset(step, observation)
+            # Valid subsets recur (at most 2^n of them): validate and route each once.
+            cached = self._request_routes.get(chosen) if type(chosen) is tuple else None
+            if cached is None:
+                servers = self._checked(chosen)
+                cached = (servers, (model.request_paths(servers), [self._service_des[i] for i in servers]))
+                if type(chosen) is tuple and all(type(i) is int for i in chosen):
+                    self._request_routes[chosen] = cached
+            self._pending[message.id] = (step, cached[0], observation)
+            return cached[1]
+        route = self._reply_routes.get(topology_src)
+        if route is None:
+            route = self._reply_routes[topology_src] = ([model.reply_path(topology_src)], [self._sink_des])
+        return route
 
     def _checked(self, subset: tuple[int, ...]) -> tuple[int, ...]:
         servers = tuple(sorted(int(i) for i in subset))
@@ -191,9 +210,7 @@ class SubsetSelection(Selection):
         else:
             winner = model.server_index(first.dst_node)
             latency_s = first.time_end - outcome.time_emit
-            parts = model.copy_breakdown(outcome.request_id, winner)
-            upload_s, propagation_s = parts.upload_s, parts.propagation_s
-            download_s, compute_s = parts.download_s, parts.compute_s
+            upload_s, propagation_s, download_s, compute_s = model.copy_parts_s(outcome.request_id, winner)
         record = RequestRecord(
             method=self.name,
             step=step,
@@ -225,10 +242,12 @@ def _check_x(x: int, n: int, method: str) -> int:
 class Oracle(SubsetSelection):
     """Every request to all n servers: the per-request lower bound on latency (§V-B i)."""
 
+    observes = False
+
     def default_name(self) -> str:
         return "Oracle"
 
-    def choose_subset(self, step: int, observation: Observation) -> tuple[int, ...]:
+    def choose_subset(self, step: int, observation: Observation | None) -> tuple[int, ...]:
         return tuple(range(self.edge_model.n_servers))
 
 
@@ -242,6 +261,8 @@ class RandX(SubsetSelection):
         **kwargs: see :class:`SubsetSelection`.
     """
 
+    observes = False
+
     def __init__(self, edge_model: EdgeModel, x: int, rng: np.random.Generator, **kwargs: Any) -> None:
         self.x = _check_x(x, edge_model.n_servers, "Rand-x")
         self.rng = rng
@@ -250,7 +271,7 @@ class RandX(SubsetSelection):
     def default_name(self) -> str:
         return f"Rand-{self.x}"
 
-    def choose_subset(self, step: int, observation: Observation) -> tuple[int, ...]:
+    def choose_subset(self, step: int, observation: Observation | None) -> tuple[int, ...]:
         return tuple(self.rng.choice(self.edge_model.n_servers, size=self.x, replace=False).tolist())
 
 
@@ -287,6 +308,8 @@ class MinPropX(SubsetSelection):
         **kwargs: see :class:`SubsetSelection`.
     """
 
+    observes = False
+
     def __init__(self, edge_model: EdgeModel, x: int, **kwargs: Any) -> None:
         self.x = _check_x(x, edge_model.n_servers, "MinProp-x")
         super().__init__(edge_model, **kwargs)
@@ -296,7 +319,7 @@ class MinPropX(SubsetSelection):
     def default_name(self) -> str:
         return f"MinProp-{self.x}"
 
-    def choose_subset(self, step: int, observation: Observation) -> tuple[int, ...]:
+    def choose_subset(self, step: int, observation: Observation | None) -> tuple[int, ...]:
         return self._subset
 
 

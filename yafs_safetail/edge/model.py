@@ -125,20 +125,24 @@ class EdgeModel:
         self._server_of_node = {node: index for index, node in enumerate(self.server_nodes)}
         self._own_running = np.zeros(self.n_servers, dtype=np.int64)
         self._step_of_request: dict[Any, int] = {}
-        self._copies: dict[tuple[Any, int], _CopyState] = {}
+        # Per request id: each server index's copy state (None: no copy sent there).
+        self._copies: dict[Any, list[_CopyState | None]] = {}
         self._request_paths = [
             [self.user_node, self.access_point_node, node] for node in self.server_nodes
         ]
         self._reply_paths = [
             [node, self.access_point_node, self.user_node] for node in self.server_nodes
         ]
-        # Plain lists for the per-hop lookups (NumPy scalar indexing is slower).
-        self._background = world.background_users.tolist()
-        self._input_transfer = world.input_transfer_by_level_s
-        self._output_transfer = world.output_transfer_by_level_s
-        self._rtt = world.rtt_s.tolist()
+        tables = world.hop_tables
+        self._background = tables.background_users
+        self._input_transfer = tables.input_transfer_s
+        self._output_transfer = tables.output_transfer_s
+        self._rtt = tables.rtt_s
+        self._compute = tables.compute_s
+        self._target = tables.target_s
         self._levels = world.n_contention_levels
         self._max_load = world.max_load
+        self._compute_width = world.compute_by_processes_s.shape[2]
 
     # ------------------------------------------------------------------ requests and steps
     def begin_request(self, request_id: Any) -> int:
@@ -169,7 +173,7 @@ class EdgeModel:
 
     def target_latency_s(self, step: int) -> float:
         """τ of Eq. 4 for step ``step``'s request."""
-        return float(self.world.target_s[step])
+        return self._target[step]
 
     # ------------------------------------------------------------------ routing helpers
     def server_index(self, node: Any) -> int:
@@ -190,8 +194,8 @@ class EdgeModel:
 
         Returns None for a copy that was refused or never sent.
         """
-        state = self._copies.get((request_id, server))
-        if state is None or state.refused:
+        state = self._copy_state(request_id, server)
+        if state is None:
             return None
         return CopyLatency(
             input_upload_s=state.input_s,
@@ -203,25 +207,48 @@ class EdgeModel:
             output_download_s=state.output_s,
         )
 
+    def copy_parts_s(self, request_id: Any, server: int) -> tuple[float, float, float, float] | None:
+        """(upload_s, propagation_s, download_s, compute_s) of a copy: the sums of
+        :meth:`copy_breakdown`'s fields without building it (once per request).
+
+        Returns None for a copy that was refused or never sent.
+        """
+        state = self._copy_state(request_id, server)
+        if state is None:
+            return None
+        transfer_s = state.input_s + state.output_s
+        return transfer_s, state.rtt_s + state.rtt_s, transfer_s, state.compute_s
+
+    def _copy_state(self, request_id: Any, server: int) -> _CopyState | None:
+        states = self._copies.get(request_id)
+        state = None if states is None or not 0 <= server < self.n_servers else states[server]
+        return None if state is None or state.refused else state
+
     def forget_request(self, request_id: Any) -> None:
         """Drop the per-copy records of a completed request (keeps memory flat on long runs)."""
-        for server in range(self.n_servers):
-            self._copies.pop((request_id, server), None)
+        self._copies.pop(request_id, None)
         self._step_of_request.pop(request_id, None)
 
     # ------------------------------------------------------------------ LinkDelay hook
     def _dispatch(self, message: Message, server: int) -> _CopyState:
-        step = self.begin_request(message.id)
+        request_id = message.id
+        step = self._step_of_request.get(request_id)
+        if step is None:
+            step = self.begin_request(request_id)
         others = self._background[step][server] + int(self._own_running[server])
         level = others if others < self._levels else self._levels - 1
+        column = server * self._levels + level
         state = _CopyState(
             step,
             server,
-            float(self._input_transfer[step, server, level]),
-            float(self._output_transfer[step, server, level]),
+            self._input_transfer[step][column],
+            self._output_transfer[step][column],
             self._rtt[step][server],
         )
-        self._copies[(message.id, server)] = state
+        states = self._copies.get(request_id)
+        if states is None:
+            states = self._copies[request_id] = [None] * self.n_servers
+        states[server] = state
         return state
 
     def hop_delay_s(self, sim: Sim, message: Message, src_node: Any, dst_node: Any) -> float:
@@ -231,32 +258,33 @@ class EdgeModel:
         if src_node == self.access_point_node:
             if dst_node == self.user_node:
                 server = self._server_of_node[message.copy_dst_node]
-                return self._copies[(message.id, server)].output_s
-            state = self._copies[(message.id, self._server_of_node[dst_node])]
+                return self._copies[message.id][server].output_s
+            state = self._copies[message.id][self._server_of_node[dst_node]]
             return state.rtt_s + state.input_s
         server = self._server_of_node.get(src_node)
         if server is None or dst_node != self.access_point_node:
             raise EdgeModelError(f"hop {src_node!r} -> {dst_node!r} is not on a user-AP-server path")
-        state = self._copies[(message.id, server)]
+        state = self._copies[message.id][server]
         return state.output_s + state.rtt_s
 
     # ------------------------------------------------------------------ ServiceModel hooks
     def admit(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> bool:
         """Refuse when the server already has ``max_load`` active users; else start a process."""
         server = self._server_of_node[node]
-        state = self._copies[(message.id, server)]
+        state = self._copies[message.id][server]
         active = self._background[state.step][server] + int(self._own_running[server])
         if active >= self._max_load:
             state.refused = True
             return False
         self._own_running[server] += 1
-        state.compute_s = float(self.world.compute_by_processes_s[state.step, server, active])
+        state.compute_s = self._compute[state.step][server * self._compute_width + active]
         return True
 
     def service_time_s(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> float:
         """The compute time fixed at admission (k = ℓ_i + 1 processes)."""
-        return self._copies[(message.id, self._server_of_node[node])].compute_s
+        return self._copies[message.id][self._server_of_node[node]].compute_s
 
     def release(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> None:
         """The copy's process ends: one active user fewer on the server."""
-        self._own_running[self._server_of_node[node]] -= 1
+        server = self._server_of_node[node]
+        self._own_running[server] -= 1

@@ -145,6 +145,31 @@ _CPU_UTIL = cpu_utilisation(np.arange(published.MAX_PROCESSES + 1))
 
 
 @dataclass(frozen=True)
+class HopTables:
+    """A world's arrays read on every copy, as nested Python lists.
+
+    Indexing a list is several times faster than indexing a NumPy array with scalars, and the
+    values are the same floats. The last two axes of the (step, server, level) and (step,
+    server, k - 1) arrays are flattened: entry ``[step][server * width + j]``.
+
+    Attributes:
+        background_users: b_i per [step][server].
+        rtt_s: ρ_i per [step][server].
+        input_transfer_s: per [step][server * levels + level].
+        output_transfer_s: per [step][server * levels + level].
+        compute_s: per [step][server * max_load + k - 1].
+        target_s: τ per [step].
+    """
+
+    background_users: list[list[int]]
+    rtt_s: list[list[float]]
+    input_transfer_s: list[list[float]]
+    output_transfer_s: list[list[float]]
+    compute_s: list[list[float]]
+    target_s: list[float]
+
+
+@dataclass(frozen=True)
 class EdgeWorld:
     """All pre-drawn quantities of one phase (read-only; share it between methods).
 
@@ -278,6 +303,20 @@ class EdgeWorld:
             user_location=self._user_location,
             user_uplink_bps=float(self.user_uplink_bps[step]),
             user_downlink_bps=float(self.user_downlink_bps[step]),
+        )
+
+    @cached_property
+    def hop_tables(self) -> HopTables:
+        """The per-copy lookups of :class:`~yafs_safetail.edge.model.EdgeModel` as plain lists
+        (built once per world and shared by every method's model)."""
+        steps = self.n_steps
+        return HopTables(
+            background_users=self.background_users.tolist(),
+            rtt_s=self.rtt_s.tolist(),
+            input_transfer_s=self.input_transfer_by_level_s.reshape(steps, -1).tolist(),
+            output_transfer_s=self.output_transfer_by_level_s.reshape(steps, -1).tolist(),
+            compute_s=self.compute_by_processes_s.reshape(steps, -1).tolist(),
+            target_s=self.target_s.tolist(),
         )
 
     @cached_property
