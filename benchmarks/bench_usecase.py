@@ -1,0 +1,83 @@
+"""Wall time of the full UC1 run, and where it goes.
+
+The run is what ``python experiments/run_usecase.py --uc 1`` does: paper preset, the full step
+budget (50·β training steps, then 20·β test steps for SafeTail and for every baseline:
+Oracle, Rand-x, MinLoad-x, MinProp-x with x = 1, 2, 3), the YAFS result CSVs and the
+figures, into a temporary folder, in this one process through ``run_experiment``.
+
+The split (seconds of wall time): package imports; setup (checks, traces, worlds, the
+learner) with the TensorFlow/Keras import shown separately; simulation (the core plus the
+edge model's hooks and the selections' bookkeeping, without the learner's share); decisions
+(state encoding and action choice); training (storing tuples and training rounds); writing
+(requests/summary/run files and the policy); plotting; and what is left over (records
+frames, moving the folder into place). The last line is ``total_s=<number>``: imports plus
+the run. The ``cpu`` line is this process's CPU time, for comparing runs on a busy machine.
+
+Usage::
+
+    python benchmarks/bench_usecase.py [--uc 1] [--preset paper] [--steps-scale 1] [--seed 0]
+        [--profile FILE]   # also write a cProfile of the run to FILE
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+STARTED = time.perf_counter()
+STARTED_CPU = time.process_time()
+
+import tempfile  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from yafs_safetail.experiment import ExperimentConfig, run_experiment  # noqa: E402
+
+IMPORTED = time.perf_counter()
+
+#: Report order of the run's timings (``ExperimentReport.timings_s``).
+PARTS = ("setup", "tf_import", "simulation", "decisions", "training", "writing", "plotting")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--uc", type=int, default=1)
+    parser.add_argument("--preset", default="paper")
+    parser.add_argument("--steps-scale", type=float, default=1.0)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--profile", type=Path, default=None, help="write a cProfile of the run here")
+    args = parser.parse_args()
+
+    with tempfile.TemporaryDirectory(prefix="bench_usecase_") as tmp:
+        config = ExperimentConfig(
+            use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=Path(tmp) / "run",
+            steps_scale=args.steps_scale, redundancy_levels=(1, 2, 3), write_yafs_csv=True,
+            figures=True, progress=False, command="benchmarks/bench_usecase.py",
+        )
+        if args.profile is None:
+            report = run_experiment(config)
+        else:
+            import cProfile
+
+            profiler = cProfile.Profile()
+            report = profiler.runcall(run_experiment, config)
+            profiler.dump_stats(args.profile)
+        n_rows = int(report.summary["n_requests"].sum())
+
+    timings = report.timings_s
+    imports_s = IMPORTED - STARTED
+    print(f"UC{args.uc} preset={args.preset} steps_scale={args.steps_scale} seed={args.seed}: "
+          f"{len(report.summary)} methods, {n_rows} test requests")
+    print(f"{'imports':<12}{imports_s:8.2f} s")
+    for part in PARTS:
+        note = "  (part of setup)" if part == "tf_import" else ""
+        print(f"{part:<12}{timings.get(part, 0.0):8.2f} s{note}")
+    accounted = sum(timings.get(part, 0.0) for part in PARTS if part != "tf_import")
+    print(f"{'other':<12}{timings['total'] - accounted:8.2f} s  (records frames, publishing)")
+    print(f"{'run':<12}{timings['total']:8.2f} s")
+    # On a shared machine wall time includes waiting for a core; CPU time does not.
+    print(f"{'cpu':<12}{time.process_time() - STARTED_CPU:8.2f} s  (this process, all threads)")
+    print(f"total_s={imports_s + timings['total']:.2f}")
+
+
+if __name__ == "__main__":
+    main()
