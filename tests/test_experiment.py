@@ -1,0 +1,161 @@
+"""run_experiment in-process on tiny budgets: determinism, seeds, common random numbers, topologies.
+
+The full budget is 50·β training and 20·β test steps; ``steps_scale=0.02`` gives 200 training
+and 80 test steps per method for UC1, enough to exercise every phase in about a second.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from yafs_safetail import results
+from yafs_safetail.experiment import (
+    REPOSITORY,
+    YAFS_DIR,
+    ExperimentConfig,
+    ExperimentError,
+    baseline_names,
+    run_experiment,
+)
+
+TINY = 0.02
+
+
+def tiny_config(out_dir: Path, **overrides) -> ExperimentConfig:
+    settings = dict(use_case=1, seed=5, out_dir=out_dir, steps_scale=TINY, figures=False,
+                    write_yafs_csv=True, progress=False, command="test")
+    settings.update(overrides)
+    return ExperimentConfig(**settings)
+
+
+def compared_files(folder: Path) -> dict[str, bytes]:
+    """Every results file that must be reproducible, by path relative to ``folder``."""
+    files = [folder / "requests.csv", folder / "summary.csv", folder / "summary.md",
+             folder / "run.json", *sorted((folder / YAFS_DIR).glob("*.csv"))]
+    return {str(path.relative_to(folder)): path.read_bytes() for path in files}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Two runs with the same config and seed, one with another seed (UC1, paper preset)."""
+    root = tmp_path_factory.mktemp("experiment")
+    first = run_experiment(tiny_config(root / "a"))
+    again = run_experiment(tiny_config(root / "b"))
+    other = run_experiment(tiny_config(root / "c", seed=6))
+    return first, again, other
+
+
+@pytest.fixture(scope="module")
+def requests(runs):
+    return results.read_requests_csv(runs[0].out_dir / "requests.csv")
+
+
+def test_same_config_and_seed_give_byte_identical_files(runs):
+    first, again, _ = runs
+    a, b = compared_files(first.out_dir), compared_files(again.out_dir)
+    # SafeTail train and test, Oracle, nine baselines; each a module and a link CSV.
+    assert len([name for name in a if name.startswith(YAFS_DIR)]) == 2 * (2 + 1 + 9)
+    assert a.keys() == b.keys()
+    for name in a:
+        assert a[name] == b[name], f"{name} differs between two runs with the same seed"
+
+
+def test_a_different_seed_gives_different_results(runs):
+    first, _, other = runs
+    assert (first.out_dir / "requests.csv").read_bytes() != (other.out_dir / "requests.csv").read_bytes()
+    a = pd.read_csv(first.out_dir / "summary.csv").set_index("method")
+    b = pd.read_csv(other.out_dir / "summary.csv").set_index("method")
+    assert not np.allclose(a.loc["Oracle", "p50_s"], b.loc["Oracle", "p50_s"])
+
+
+def test_budget_phases_and_methods(runs, requests):
+    report = runs[0]
+    methods = [results.SAFETAIL, *baseline_names((1, 2, 3))]
+    assert list(report.summary["method"]) == methods
+    train = requests[requests["phase"] == "train"]
+    test = requests[requests["phase"] == "test"]
+    assert set(train["method"]) == {results.SAFETAIL}
+    assert len(train) == round(50 * 200 * TINY)
+    assert (test.groupby("method").size() == round(20 * 200 * TINY)).all()
+    assert set(test["method"]) == set(methods)
+    for part in ("setup", "tf_import", "simulation", "decisions", "training", "writing", "total"):
+        assert report.timings_s[part] >= 0.0
+
+
+def test_every_method_sees_the_same_requests_per_step(requests):
+    test = requests[requests["phase"] == "test"]
+    reference = test[test["method"] == results.SAFETAIL].set_index("step")
+    for method, rows in test.groupby("method"):
+        rows = rows.set_index("step")
+        assert list(rows.index) == list(reference.index), method
+        assert (rows["request_id"] == reference["request_id"]).all(), method
+        assert (rows["target_s"] == reference["target_s"]).all(), method
+
+
+def test_oracle_is_a_per_request_lower_bound(requests):
+    test = requests[requests["phase"] == "test"]
+    oracle = test[test["method"] == results.ORACLE].set_index("step")["latency_s"]
+    assert (test[test["method"] == results.ORACLE]["n_selected"] == 5).all()
+    for method, rows in test.groupby("method"):
+        latency = rows.set_index("step")["latency_s"]
+        joined = pd.concat({"method": latency, "oracle": oracle}, axis=1, join="inner")
+        assert len(joined) == len(oracle), method
+        worse = joined[joined["oracle"] > joined["method"]]
+        assert worse.empty, f"Oracle slower than {method} at steps {list(worse.index[:5])}"
+
+
+def test_baselines_pick_the_subsets_they_promise(requests):
+    test = requests[requests["phase"] == "test"]
+    for x in (1, 2, 3):
+        for family in ("Rand", "MinLoad", "MinProp"):
+            rows = test[test["method"] == f"{family}-{x}"]
+            assert (rows["n_selected"] == x).all()
+        minprop = test[test["method"] == f"MinProp-{x}"]["servers"]
+        assert minprop.nunique() == 1  # a fixed subset: the x lowest median RTTs
+    assert test[test["method"] == "Rand-2"]["servers"].nunique() > 1
+    safetail = requests[requests["method"] == results.SAFETAIL]
+    assert safetail["reward"].notna().all()
+    assert (safetail[safetail["phase"] == "test"]["epsilon"] == 0.0).all()
+
+
+@pytest.mark.parametrize("servers", [3, 7])
+def test_other_topologies_run(tmp_path, servers):
+    topology = REPOSITORY / "topologies" / f"{servers}servers.json"
+    placement = REPOSITORY / "placements" / f"{servers}servers.json"
+    report = run_experiment(tiny_config(tmp_path / "run", topology=topology, placement=placement,
+                                        redundancy_levels=(1, 3), write_yafs_csv=False, steps_scale=0.01))
+    run = results.read_run_json(tmp_path / "run" / "run.json")
+    assert run.n_servers == servers
+    requests = results.read_requests_csv(tmp_path / "run" / "requests.csv")
+    oracle = requests[requests["method"] == results.ORACLE]
+    assert (oracle["n_selected"] == servers).all()
+    assert (oracle["access_rate"] == 1.0).all()
+    assert set(report.summary["method"]) == {results.SAFETAIL, *baseline_names((1, 3))}
+    assert not (tmp_path / "run" / YAFS_DIR).exists()
+
+
+def test_redundancy_beyond_the_servers_is_refused_before_anything_is_written(tmp_path):
+    out = tmp_path / "run"
+    topology = REPOSITORY / "topologies" / "3servers.json"
+    placement = REPOSITORY / "placements" / "3servers.json"
+    with pytest.raises(ExperimentError, match=r"--redundancy: x=4 must be an integer in 1\.\.3"):
+        run_experiment(tiny_config(out, topology=topology, placement=placement, redundancy_levels=(1, 4)))
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, True])
+def test_bad_seed_is_refused(tmp_path, seed):
+    with pytest.raises(ExperimentError, match="--seed"):
+        run_experiment(tiny_config(tmp_path / "run", seed=seed))
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, math.inf, math.nan])
+def test_bad_steps_scale_is_refused(tmp_path, scale):
+    with pytest.raises(ExperimentError, match="--steps-scale"):
+        run_experiment(tiny_config(tmp_path / "run", steps_scale=scale))
