@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -228,6 +229,15 @@ def test_save_load_roundtrip(tmp_path: Path) -> None:
     for i in range(16):
         resumed.observe(x[i], 0, 0.0)
     assert resumed.n_training_rounds == 3
+
+
+def test_saving_the_same_weights_twice_gives_identical_files(tmp_path: Path) -> None:
+    learner = SafeTailLearner(N, DIM, tiny_config(), seed=8)
+    first = learner.save(tmp_path / "a.keras").read_bytes()
+    time.sleep(1.1)  # Keras would otherwise record a different save time
+    second = learner.save(tmp_path / "b.keras").read_bytes()
+    assert first == second
+    assert SafeTailLearner.load(tmp_path / "b.keras").n_servers == N
 
 
 def target_reward(i: int) -> float:

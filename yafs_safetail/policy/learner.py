@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -21,6 +23,33 @@ _SIDECAR_VERSION = 1
 
 class PolicyFileError(ValueError):
     """A saved policy (``.keras`` file or its JSON sidecar) is missing or inconsistent."""
+
+
+#: What a saved policy records as its save date: a fixed value, so that the same weights give
+#: a byte-identical ``.keras`` file (Keras writes the wall-clock time otherwise).
+FIXED_SAVE_DATE = "1980-01-01@00:00:00"
+_FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+
+
+def _make_reproducible(path: Path) -> None:
+    """Rewrite a ``.keras`` archive with a fixed save date and fixed entry timestamps.
+
+    The weights and the config inside are already deterministic; only Keras's
+    ``metadata.json`` date and the zip entries' modification times change between saves.
+    """
+    staging = path.with_name(f".{path.name}.tmp")
+    with zipfile.ZipFile(path) as source, zipfile.ZipFile(staging, "w", zipfile.ZIP_DEFLATED) as target:
+        for entry in source.infolist():
+            data = source.read(entry.filename)
+            if entry.filename == "metadata.json":
+                metadata = json.loads(data)
+                metadata["date_saved"] = FIXED_SAVE_DATE
+                data = json.dumps(metadata).encode("utf-8")
+            info = zipfile.ZipInfo(entry.filename, date_time=_FIXED_ZIP_TIME)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = entry.external_attr
+            target.writestr(info, data)
+    os.replace(staging, path)
 
 
 class SafeTailLearner:
@@ -217,6 +246,7 @@ class SafeTailLearner:
         if path.suffix != ".keras":
             raise ValueError(f"{path}: a saved policy must end in .keras")
         self._model.save(path)
+        _make_reproducible(path)
         sidecar = {
             "version": _SIDECAR_VERSION,
             "n_servers": self.n_servers,
