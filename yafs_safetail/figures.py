@@ -89,9 +89,11 @@ def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, object]:
     figure.subplots_adjust(left=0.12, right=0.97, bottom=0.17, top=0.85)
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
-    axes.set_title(f"{title}\nuse case {run.use_case} ({run.use_case_name}), preset {run.preset}")
-    figure.text(0.99, 0.005, f"seed {run.seed}, β = {run.beta}, yafs-safetail {run.package_version}",
-                ha="right", va="bottom", fontsize=6, color="#777777")
+    axes.set_title(f"{title}\nuse case {run.use_case}, preset {run.preset}")
+    # The long use-case name goes in the footer, where it cannot run off the figure's edge.
+    figure.text(0.99, 0.005, f"{run.use_case_name}; seed {run.seed}, β = {run.beta}, "
+                f"yafs-safetail {run.package_version}",
+                ha="right", va="bottom", fontsize=6, color="#777777", wrap=True)
     return figure, axes
 
 
