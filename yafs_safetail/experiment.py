@@ -160,7 +160,10 @@ def _prepare_output(out_dir: Path) -> Path:
         raise OSError(f"--out {out_dir}: {parent} is not writable")
     staging = parent / f".{out_dir.name}.partial-{os.getpid()}"
     shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
+    try:
+        staging.mkdir()
+    except OSError as error:
+        raise OSError(f"--out {out_dir}: cannot write in {parent}: {error.strerror}") from None
     return staging
 
 
@@ -278,19 +281,35 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
                "writing": 0.0, "plotting": 0.0}
     started = time.perf_counter()
 
-    # 1. configuration and inputs
+    # 1. configuration and inputs, all checked before TensorFlow is imported or anything written
     use_case, learner_config = _check_config(config)
-    scenario = load_scenario(config.topology, config.placement)
+    inputs = load_inputs(use_case, config.traces_dir)
+    scenario = load_scenario(config.topology, config.placement,
+                             known_conditions=inputs.rtt_pools_s.keys(),
+                             n_load_devices=inputs.load_levels.shape[1])
     for x in config.redundancy_levels:
         if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= scenario.n_servers:
             raise ExperimentError(
                 f"--redundancy: x={x!r} must be an integer in 1..{scenario.n_servers} "
                 f"(the servers in {config.topology})"
             )
-    inputs = load_inputs(use_case, config.traces_dir)
+    if config.policy is not None and not Path(config.policy).is_file():
+        raise ExperimentError(f"--policy {config.policy}: no such file")
+
+    # 2. the two phases' worlds (common random numbers for every method of a phase)
+    episode_steps = learner_config.episode_steps
+
+    def world(phase: str, n_steps: int) -> EdgeWorld:
+        return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
+                           episode_steps=episode_steps)
+
+    train_world = world("train", learner_config.train_steps) if config.policy is None else None
+    test_world = world("test", scaled_steps(learner_config.test_steps, config.steps_scale))
+
     staging = _prepare_output(config.out_dir)
     try:
-        report = _run_into(staging, config, use_case, learner_config, scenario, inputs, timings, started)
+        report = _run_into(staging, config, use_case, learner_config, scenario, train_world,
+                           test_world, timings, started)
         _publish(staging, config.out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
@@ -299,7 +318,8 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     return report
 
 
-def _run_into(staging, config, use_case, learner_config, scenario, inputs, timings, started):
+def _run_into(staging, config, use_case, learner_config, scenario, train_world, test_world, timings,
+              started):
     t0 = time.perf_counter()
     from yafs_safetail.policy.learner import SafeTailLearner
 
@@ -307,18 +327,9 @@ def _run_into(staging, config, use_case, learner_config, scenario, inputs, timin
     # the first time, so it is done here to show up as its own part of the setup time.
     importlib.import_module("keras")
     timings["tf_import"] = time.perf_counter() - t0
-
     train_steps = learner_config.train_steps
-    test_steps = scaled_steps(learner_config.test_steps, config.steps_scale)
+    test_steps = test_world.n_steps
     episode_steps = learner_config.episode_steps
-
-    # 2. the two phases' worlds (common random numbers for every method of a phase)
-    def world(phase: str, n_steps: int) -> EdgeWorld:
-        return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
-                           episode_steps=episode_steps)
-
-    train_world = world("train", train_steps) if config.policy is None else None
-    test_world = world("test", test_steps)
 
     # 3. the learner: fresh, or a saved policy evaluated without training
     scales = StateScales.for_use_case(use_case.number)

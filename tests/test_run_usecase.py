@@ -1,0 +1,258 @@
+"""experiments/run_usecase.py as users run it: a subprocess, tiny budgets, its folder and errors.
+
+Successful runs import TensorFlow (a few seconds each), so they are few and small; bad input
+fails before TensorFlow is imported and must end in exactly one ``error:`` line on stderr,
+exit code 2, no traceback, and no change to an earlier results folder at ``--out``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from yafs_safetail import results
+from yafs_safetail.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, baseline_names
+from yafs_safetail.figures import FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR
+
+SCRIPT = REPOSITORY / "experiments" / "run_usecase.py"
+TINY = ["--steps-scale", "0.02", "--redundancy", "1,2"]
+FIGURES = [f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in FIGURE_FORMATS]
+
+
+def run_script(*args: str | Path, cwd: Path = REPOSITORY) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != "YAFS_SAFETAIL_DEBUG"}
+    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+def earlier_results(folder: Path) -> dict[str, bytes]:
+    """Make ``folder`` look like an earlier run's results; returns what must survive."""
+    folder.mkdir(parents=True)
+    (folder / "requests.csv").write_text("method,phase\nSafeTail,test\n")
+    (folder / "summary.md").write_text("# an earlier run\n")
+    return snapshot(folder)
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def assert_one_error_line(done: subprocess.CompletedProcess[str], *fragments: str) -> str:
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("error: ")
+    for fragment in fragments:
+        assert fragment in lines[0]
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def uc1_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("uc1") / "run"
+    done = run_script("--uc", "1", "--seed", "4", "--out", out, "--quiet", *TINY)
+    assert done.returncode == 0, done.stderr
+    assert "| SafeTail |" in done.stdout and f"results: {out}" in done.stdout
+    return out
+
+
+def test_uc1_writes_the_whole_folder(uc1_run):
+    out = uc1_run
+    methods = [results.SAFETAIL, *baseline_names((1, 2))]
+    requests = results.read_requests_csv(out / "requests.csv")
+    assert list(requests.columns[: len(results.REQUESTS_COLUMNS)]) == list(results.REQUESTS_COLUMNS)
+    assert set(requests["method"]) == set(methods)
+    assert len(requests[requests["phase"] == "train"]) == 200
+    assert (requests[requests["phase"] == "test"].groupby("method").size() == 80).all()
+
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["method"]) == methods
+    assert list(summary.columns) == list(results.SUMMARY_COLUMNS)
+    assert (summary["n_requests"] == 80).all()
+    markdown = (out / "summary.md").read_text()
+    assert "use case 1" in markdown and "Oracle over SafeTail" in markdown
+
+    run = json.loads((out / "run.json").read_text())
+    assert run["preset"] == "paper" and run["seed"] == 4 and run["use_case"] == 1
+    assert run["methods"] == methods and run["train_steps"] == 200 and run["test_steps"] == 80
+    assert run["topology"] == "topologies/paper_5servers.json"
+    assert "--uc 1" in run["command"]
+
+    assert (out / POLICY_FILE).stat().st_size > 0
+    yafs = {p.name for p in (out / YAFS_DIR).iterdir()}
+    for method, phase in [(results.SAFETAIL, "train"), *((m, "test") for m in methods)]:
+        assert {f"{method}_{phase}.csv", f"{method}_{phase}_link.csv"} <= yafs
+    module_rows = pd.read_csv(out / YAFS_DIR / "Oracle_test.csv")
+    assert {"id", "type", "time_in", "time_out"} <= set(module_rows.columns)
+    assert len(module_rows) > 0
+
+    figures = sorted(p.name for p in (out / FIGURES_DIR).iterdir())
+    assert figures == sorted(FIGURES)
+    assert all((out / FIGURES_DIR / name).stat().st_size > 0 for name in figures)
+    # Nothing temporary is left beside the published folder.
+    assert [p.name for p in out.parent.iterdir()] == ["run"]
+
+
+def test_saved_policy_is_evaluated_without_training(uc1_run, tmp_path):
+    out = tmp_path / "eval"
+    done = run_script("--uc", "1", "--seed", "4", "--policy", uc1_run / POLICY_FILE, "--out", out,
+                      "--quiet", "--no-figures", "--no-yafs-csv", *TINY)
+    assert done.returncode == 0, done.stderr
+    requests = results.read_requests_csv(out / "requests.csv")
+    assert set(requests["phase"]) == {"test"}
+    run = json.loads((out / "run.json").read_text())
+    assert run["train_steps"] == 0 and run["n_servers"] == 5
+    assert run["policy_source"] == str(uc1_run / POLICY_FILE)
+    # The same test world and a greedy policy: the trained run's test rows are reproduced.
+    trained = results.read_requests_csv(uc1_run / "requests.csv")
+    trained = trained[(trained["phase"] == "test") & (trained["method"] == results.SAFETAIL)]
+    evaluated = requests[requests["method"] == results.SAFETAIL]
+    assert list(evaluated["servers"]) == list(trained["servers"])
+    assert list(evaluated["latency_s"]) == list(trained["latency_s"])
+    assert not (out / FIGURES_DIR).exists() and not (out / YAFS_DIR).exists()
+
+
+def test_policy_for_another_number_of_servers_is_refused(uc1_run, tmp_path):
+    out = tmp_path / "eval"
+    kept = earlier_results(out)
+    done = run_script("--uc", "1", "--policy", uc1_run / POLICY_FILE, "--out", out,
+                      "--topology", REPOSITORY / "topologies" / "3servers.json", *TINY)
+    # Loading the policy imports TensorFlow, which logs to stderr itself; ours is the last line.
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    last = done.stderr.splitlines()[-1]
+    assert last.startswith("error: ") and "5 servers" in last and "3" in last
+    assert snapshot(out) == kept
+
+
+@pytest.mark.parametrize("uc", [2, 3])
+def test_other_use_cases_run(tmp_path, uc):
+    out = tmp_path / f"uc{uc}"
+    done = run_script("--uc", uc, "--out", out, "--quiet", "--no-figures", "--no-yafs-csv",
+                      "--steps-scale", "0.01", "--redundancy", "1")
+    assert done.returncode == 0, done.stderr
+    run = json.loads((out / "run.json").read_text())
+    assert run["use_case"] == uc and run["preset"] == "paper"
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["method"]) == [results.SAFETAIL, *baseline_names((1,))]
+    assert (summary["p50_s"] > 0).all()
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["requests.csv", "run.json", "summary.csv", "summary.md", POLICY_FILE, f"{POLICY_FILE}.json"]
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("uc", [1, 2, 3])
+def test_tuned_preset_with_figures_and_yafs_csvs(tmp_path, uc):
+    out = tmp_path / f"uc{uc}"
+    done = run_script("--uc", uc, "--preset", "tuned", "--seed", "1", "--out", out, "--quiet",
+                      "--steps-scale", "0.1")
+    assert done.returncode == 0, done.stderr
+    assert json.loads((out / "run.json").read_text())["preset"] == "tuned"
+    assert sorted(p.name for p in (out / FIGURES_DIR).iterdir()) == sorted(FIGURES)
+
+
+def test_help():
+    done = run_script("--help")
+    assert done.returncode == 0 and done.stderr == ""
+    for option in ("--uc", "--preset", "--seed", "--out", "--steps-scale", "--policy", "--topology"):
+        assert option in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--uc", "4"], ["--uc", "4"]),
+        (["--uc", "one"], ["--uc", "one"]),
+        ([], ["--uc"]),
+        (["--uc", "1", "--preset", "fancy"], ["--preset", "fancy"]),
+        (["--uc", "1", "--seed", "-1"], ["--seed", "-1"]),
+        (["--uc", "1", "--seed", "abc"], ["--seed", "abc"]),
+        (["--uc", "1", "--steps-scale", "0"], ["--steps-scale"]),
+        (["--uc", "1", "--redundancy", "1,9"], ["--redundancy", "x=9"]),
+        (["--uc", "1", "--bogus"], ["--bogus"]),
+    ],
+)
+def test_bad_arguments_give_one_line_and_keep_earlier_results(tmp_path, args, fragments):
+    out = tmp_path / "earlier"
+    kept = earlier_results(out)
+    done = run_script(*args, "--out", out)
+    assert_one_error_line(done, *fragments)
+    assert snapshot(out) == kept
+    assert [p.name for p in tmp_path.iterdir()] == ["earlier"]
+
+
+def test_topology_that_is_not_json(tmp_path):
+    topology = tmp_path / "broken.json"
+    topology.write_text("{ not json")
+    out = tmp_path / "earlier"
+    kept = earlier_results(out)
+    done = run_script("--uc", "1", "--topology", topology,
+                      "--placement", REPOSITORY / "placements" / "paper_5servers.json", "--out", out)
+    assert_one_error_line(done, "broken.json")
+    assert snapshot(out) == kept
+
+
+def test_topology_with_an_unknown_condition(tmp_path):
+    data = json.loads((REPOSITORY / "topologies" / "paper_5servers.json").read_text())
+    for link in data["link"]:
+        if "condition" in link:
+            link["condition"] = 9
+            break
+    topology = tmp_path / "far.json"
+    topology.write_text(json.dumps(data))
+    out = tmp_path / "earlier"
+    kept = earlier_results(out)
+    done = run_script("--uc", "1", "--topology", topology,
+                      "--placement", REPOSITORY / "placements" / "paper_5servers.json", "--out", out)
+    assert_one_error_line(done, "far.json", "condition", "9")
+    assert snapshot(out) == kept
+
+
+def test_missing_topology_and_default_placement(tmp_path):
+    done = run_script("--uc", "1", "--topology", tmp_path / "nowhere.json", "--out", tmp_path / "run")
+    assert_one_error_line(done, "nowhere.json")
+    assert not (tmp_path / "run").exists()
+
+
+def test_output_whose_parent_is_a_file(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    done = run_script("--uc", "1", "--out", blocker / "run", *TINY)
+    assert_one_error_line(done, "--out", str(blocker))
+    assert blocker.read_text() == "not a folder"
+
+
+def test_output_that_is_a_file(tmp_path):
+    target = tmp_path / "results"
+    target.write_text("keep me")
+    done = run_script("--uc", "1", "--out", target, *TINY)
+    assert_one_error_line(done, "--out", "not a folder")
+    assert target.read_text() == "keep me"
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
+def test_output_in_a_folder_nobody_can_write(tmp_path):
+    # /proc refuses new entries even to root (the read-only folder test below needs non-root).
+    done = run_script("--uc", "1", "--out", "/proc/yafs_safetail_run", *TINY)
+    assert_one_error_line(done, "--out", "/proc")
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root writes anywhere")
+def test_output_under_a_read_only_folder(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    kept = earlier_results(locked / "run")
+    locked.chmod(0o555)
+    try:
+        done = run_script("--uc", "1", "--out", locked / "run", *TINY)
+    finally:
+        locked.chmod(0o755)
+    assert_one_error_line(done, "--out", "not writable")
+    assert snapshot(locked / "run") == kept
