@@ -5,17 +5,20 @@ budget (50·β training steps, then 20·β test steps for SafeTail and for every
 Oracle, Rand-x, MinLoad-x, MinProp-x with x = 1, 2, 3), the YAFS result CSVs and the
 figures, into a temporary folder, in this one process through ``run_experiment``.
 
-The split (seconds of wall time): package imports; setup (checks, traces, worlds, the
-learner) with the TensorFlow/Keras import shown separately; simulation (the core plus the
-edge model's hooks and the selections' bookkeeping, without the learner's share); decisions
-(state encoding and action choice); training (storing tuples and training rounds); writing
-(requests/summary/run files and the policy); plotting; and what is left over (records
-frames, moving the folder into place). The last line is ``total_s=<number>``: imports plus
-the run. The ``cpu`` line is this process's CPU time, for comparing runs on a busy machine.
+The split (seconds of wall time): setup (checks, traces, worlds, the learner) with the
+TensorFlow/Keras import shown separately; simulation in this process (the core plus the edge
+model's hooks and the selections' bookkeeping, without the learner's share); decisions (state
+encoding and action choice); training (storing tuples and training rounds); with
+``--workers 2`` (the default) the baselines' test phase runs in a forked process beside the
+above: its wall time, and how long this process then waited for it; writing
+(requests/summary/run files and the policy); plotting; what is left over (records frames,
+moving the folder into place); and the package imports. The last line is
+``total_s=<number>``: imports plus the run. The ``cpu`` line is this process's CPU time, for comparing runs on a busy machine.
 
 Usage::
 
     python benchmarks/bench_usecase.py [--uc 1] [--preset paper] [--steps-scale 1] [--seed 0]
+        [--workers 2]
         [--profile FILE]   # also write a cProfile of the run to FILE
 """
 
@@ -27,6 +30,7 @@ import time
 STARTED = time.perf_counter()
 STARTED_CPU = time.process_time()
 
+import os  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -35,7 +39,10 @@ from yafs_safetail.experiment import ExperimentConfig, run_experiment  # noqa: E
 IMPORTED = time.perf_counter()
 
 #: Report order of the run's timings (``ExperimentReport.timings_s``).
-PARTS = ("setup", "tf_import", "simulation", "decisions", "training", "writing", "plotting")
+PARTS = ("setup", "tf_import", "simulation", "decisions", "training", "baselines_in_workers",
+         "waiting_for_workers", "writing", "plotting")
+#: Parts inside another part, or overlapping this process's time (not added to the total).
+NOT_ADDED = {"tf_import": "part of setup", "baselines_in_workers": "in worker processes, overlapped"}
 
 
 def main() -> None:
@@ -44,6 +51,8 @@ def main() -> None:
     parser.add_argument("--preset", default="paper")
     parser.add_argument("--steps-scale", type=float, default=1.0)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=2,
+                        help="processes (default 2: the baselines run beside SafeTail's training)")
     parser.add_argument("--profile", type=Path, default=None, help="write a cProfile of the run here")
     args = parser.parse_args()
 
@@ -51,7 +60,7 @@ def main() -> None:
         config = ExperimentConfig(
             use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=Path(tmp) / "run",
             steps_scale=args.steps_scale, redundancy_levels=(1, 2, 3), write_yafs_csv=True,
-            figures=True, progress=False, command="benchmarks/bench_usecase.py",
+            figures=True, progress=False, command="benchmarks/bench_usecase.py", workers=args.workers,
         )
         if args.profile is None:
             report = run_experiment(config)
@@ -65,17 +74,22 @@ def main() -> None:
 
     timings = report.timings_s
     imports_s = IMPORTED - STARTED
-    print(f"UC{args.uc} preset={args.preset} steps_scale={args.steps_scale} seed={args.seed}: "
+    print(f"UC{args.uc} preset={args.preset} steps_scale={args.steps_scale} seed={args.seed} "
+          f"workers={args.workers}: "
           f"{len(report.summary)} methods, {n_rows} test requests")
-    print(f"{'imports':<12}{imports_s:8.2f} s")
+    width = max(map(len, PARTS)) + 2
     for part in PARTS:
-        note = "  (part of setup)" if part == "tf_import" else ""
-        print(f"{part:<12}{timings.get(part, 0.0):8.2f} s{note}")
-    accounted = sum(timings.get(part, 0.0) for part in PARTS if part != "tf_import")
-    print(f"{'other':<12}{timings['total'] - accounted:8.2f} s  (records frames, publishing)")
-    print(f"{'run':<12}{timings['total']:8.2f} s")
+        note = f"  ({NOT_ADDED[part]})" if part in NOT_ADDED else ""
+        print(f"{part:<{width}}{timings.get(part, 0.0):8.2f} s{note}")
+    accounted = sum(timings.get(part, 0.0) for part in PARTS if part not in NOT_ADDED)
+    print(f"{'other':<{width}}{timings['total'] - accounted:8.2f} s  (records frames, publishing)")
+    print(f"{'run':<{width}}{timings['total']:8.2f} s")
     # On a shared machine wall time includes waiting for a core; CPU time does not.
-    print(f"{'cpu':<12}{time.process_time() - STARTED_CPU:8.2f} s  (this process, all threads)")
+    children = os.times()
+    print(f"{'cpu':<{width}}{time.process_time() - STARTED_CPU:8.2f} s  (this process, all threads)")
+    print(f"{'cpu_workers':<{width}}{children.children_user + children.children_system:8.2f} s  "
+          "(the worker processes)")
+    print(f"{'imports':<{width}}{imports_s:8.2f} s")
     print(f"total_s={imports_s + timings['total']:.2f}")
 
 

@@ -56,6 +56,16 @@ def _seed(text: str) -> int:
     return value
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
 def _levels(text: str) -> tuple[int, ...]:
     try:
         levels = tuple(int(part) for part in text.split(",") if part.strip())
@@ -86,6 +96,9 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                         help="YAFS placement JSON (default: placements/<topology file name>)")
     parser.add_argument("--policy", type=Path, default=None,
                         help="evaluate this saved policy (.keras) without training")
+    parser.add_argument("--workers", type=_positive_int, default=2,
+                        help="processes: the baselines are tested in workers-1 other processes "
+                             "while SafeTail trains (default 2; 1 = one process; same results)")
     parser.add_argument("--no-yafs-csv", action="store_true", help="skip the per-method YAFS CSVs")
     parser.add_argument("--no-figures", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -102,7 +115,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         topology=args.topology, placement=placement, steps_scale=args.steps_scale,
         redundancy_levels=args.redundancy, policy=args.policy,
         write_yafs_csv=not args.no_yafs_csv, figures=not args.no_figures,
-        progress=not args.quiet and sys.stderr.isatty(), command=command,
+        progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
     )
 
 

@@ -42,10 +42,11 @@ def compared_files(folder: Path) -> dict[str, bytes]:
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """Two runs with the same config and seed, one with another seed (UC1, paper preset)."""
+    """Two runs with the same config and seed (baselines in a worker process, then all in one
+    process), one with another seed (UC1, paper preset)."""
     root = tmp_path_factory.mktemp("experiment")
-    first = run_experiment(tiny_config(root / "a"))
-    again = run_experiment(tiny_config(root / "b"))
+    first = run_experiment(tiny_config(root / "a", workers=2))
+    again = run_experiment(tiny_config(root / "b", workers=1))
     other = run_experiment(tiny_config(root / "c", seed=6))
     return first, again, other
 
@@ -55,7 +56,7 @@ def requests(runs):
     return results.read_requests_csv(runs[0].out_dir / "requests.csv")
 
 
-def test_same_config_and_seed_give_byte_identical_files(runs):
+def test_same_config_and_seed_give_byte_identical_files_with_any_workers(runs):
     first, again, _ = runs
     a, b = compared_files(first.out_dir), compared_files(again.out_dir)
     # SafeTail train and test, Oracle, nine baselines; each a module and a link CSV.
@@ -123,6 +124,28 @@ def test_baselines_pick_the_subsets_they_promise(requests):
     assert (safetail[safetail["phase"] == "test"]["epsilon"] == 0.0).all()
 
 
+def test_three_workers_split_the_baselines_and_match(runs, tmp_path):
+    report = run_experiment(tiny_config(tmp_path / "run", workers=3))
+    assert report.timings_s["baselines_in_workers"] > 0.0
+    assert compared_files(tmp_path / "run") == compared_files(runs[0].out_dir)
+
+
+def test_a_failing_baseline_worker_fails_the_run_and_writes_nothing(tmp_path, monkeypatch):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "summary.md").write_text("an earlier run\n")
+
+    def broken(name, edge, rng):
+        raise ExperimentError(f"{name}: broken on purpose")
+
+    # Forked workers inherit the patched module.
+    monkeypatch.setattr("yafs_safetail.experiment.make_baseline", broken)
+    with pytest.raises(ExperimentError, match="Oracle: broken on purpose"):
+        run_experiment(tiny_config(out, workers=2))
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+    assert [p.name for p in out.iterdir()] == ["summary.md"]
+
+
 @pytest.mark.parametrize("servers", [3, 7])
 def test_other_topologies_run(tmp_path, servers):
     topology = REPOSITORY / "topologies" / f"{servers}servers.json"
@@ -147,6 +170,12 @@ def test_redundancy_beyond_the_servers_is_refused_before_anything_is_written(tmp
         run_experiment(tiny_config(out, topology=topology, placement=placement, redundancy_levels=(1, 4)))
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("workers", [0, -1, 1.0, True])
+def test_bad_workers_is_refused(tmp_path, workers):
+    with pytest.raises(ExperimentError, match="--workers"):
+        run_experiment(tiny_config(tmp_path / "run", workers=workers))
 
 
 @pytest.mark.parametrize("seed", [-1, 1.5, True])

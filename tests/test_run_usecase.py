@@ -135,7 +135,7 @@ def test_policy_for_another_number_of_servers_is_refused(uc1_run, tmp_path):
 def test_other_use_cases_run(tmp_path, uc):
     out = tmp_path / f"uc{uc}"
     done = run_script("--uc", uc, "--out", out, "--quiet", "--no-figures", "--no-yafs-csv",
-                      "--steps-scale", "0.01", "--redundancy", "1")
+                      "--steps-scale", "0.01", "--redundancy", "1", "--workers", uc - 1)
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
     assert run["use_case"] == uc and run["preset"] == "paper"
@@ -176,6 +176,7 @@ def test_help():
         (["--uc", "1", "--seed", "abc"], ["--seed", "abc"]),
         (["--uc", "1", "--steps-scale", "0"], ["--steps-scale"]),
         (["--uc", "1", "--redundancy", "1,9"], ["--redundancy", "x=9"]),
+        (["--uc", "1", "--workers", "0"], ["--workers", "0"]),
         (["--uc", "1", "--bogus"], ["--bogus"]),
     ],
 )

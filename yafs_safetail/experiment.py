@@ -2,23 +2,31 @@
 
 The flow reads top to bottom in :func:`run_experiment`:
 
-1. check the configuration (use case, preset, seed, step scale, redundancy levels, output);
-2. load the scenario (topology + placement JSON) and the traces;
-3. draw the two phases' worlds (common random numbers: every method of a phase replays the
-   same requests, trace rows and per-server draws);
-4. train SafeTail for the preset's training steps (ε-greedy, a training round every κ tuples);
-5. test SafeTail greedily (no exploration, no training) and every baseline on the test world;
-6. write the results folder under a temporary name, then rename it into place, so a failed
-   run never leaves half-written results and never destroys an earlier run's folder.
+1. check the configuration (use case, preset, seed, step scale, redundancy levels), load the
+   traces and the scenario (topology + placement JSON);
+2. draw the two phases' worlds (common random numbers: every method of a phase replays the
+   same requests, trace rows and per-server draws). Everything so far is checked before
+   TensorFlow is imported or the output is touched;
+3. start the baselines' test phase in worker processes (``workers - 1`` of them);
+4. import TensorFlow and build the learner (or load a saved policy);
+5. train SafeTail for the preset's training steps (ε-greedy, a training round every κ tuples),
+   then test it greedily (no exploration, no training) on the test world;
+6. collect the baselines' rows and write the results folder under a temporary name, then
+   rename it into place, so a failed run never leaves half-written results and never
+   destroys an earlier run's folder.
 
 Every method runs its own YAFS-compatible :class:`~yafs_safetail.yafs.core.Sim` with the
-edge model as its delay hooks and writes the YAFS result CSVs under ``yafs/``.
+edge model as its delay hooks and writes the YAFS result CSVs under ``yafs/``. A method's
+simulation depends only on the world and its own seeded generator, so running the baselines
+in other processes gives the same files as running everything in one.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
+import multiprocessing
 import os
 import shutil
 import sys
@@ -26,6 +34,7 @@ import time
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +93,9 @@ class ExperimentConfig:
         progress: show progress bars on stderr.
         policy: a saved policy (``.keras``) to evaluate without training.
         command: the command line, recorded in ``run.json``.
+        workers: processes for the run: the baselines' test phase runs in ``workers - 1``
+            forked processes while this one trains SafeTail (1: everything here). The
+            results do not depend on it.
     """
 
     use_case: int = 1
@@ -101,6 +113,7 @@ class ExperimentConfig:
     progress: bool = True
     policy: Path | None = None
     command: str = ""
+    workers: int = 2
 
 
 @dataclass
@@ -142,6 +155,8 @@ def _check_config(config: ExperimentConfig) -> tuple[UseCase, LearnerConfig]:
         config.preset, use_case.number,
         train_steps=scaled_steps(base.train_steps, config.steps_scale),
     )
+    if isinstance(config.workers, bool) or not isinstance(config.workers, int) or config.workers < 1:
+        raise ExperimentError(f"--workers: expected a positive integer, got {config.workers!r}")
     if not config.redundancy_levels:
         raise ExperimentError("--redundancy: give at least one level x")
     return use_case, learner_config
@@ -278,7 +293,7 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
         OSError: the output folder cannot be written.
     """
     timings = {"setup": 0.0, "tf_import": 0.0, "simulation": 0.0, "decisions": 0.0, "training": 0.0,
-               "writing": 0.0, "plotting": 0.0}
+               "baselines_in_workers": 0.0, "waiting_for_workers": 0.0, "writing": 0.0, "plotting": 0.0}
     started = time.perf_counter()
 
     # 1. configuration and inputs, all checked before TensorFlow is imported or anything written
@@ -318,39 +333,104 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     return report
 
 
+@dataclass(frozen=True)
+class _BaselineJob:
+    """The test phase of some baselines: everything a worker process needs (inherited by fork)."""
+
+    names: tuple[str, ...]
+    seed: int
+    world: EdgeWorld
+    scenario: EdgeScenario
+    step_interval_s: float
+    yafs_dir: Path | None
+    episode_steps: int
+    progress_prefix: str | None
+
+    def run(self) -> tuple[list[pd.DataFrame], float]:
+        """Simulate each baseline; returns its requests rows (in ``names`` order) and the wall time."""
+        started = time.perf_counter()
+        frames = []
+        for name in self.names:
+            rng = method_rng(self.seed, name)
+            records = simulate(
+                self.world, self.scenario,
+                lambda edge, name=name, rng=rng: make_baseline(name, edge, rng),
+                self.step_interval_s,
+                None if self.yafs_dir is None else self.yafs_dir / f"{name}_test",
+                None if self.progress_prefix is None else f"{self.progress_prefix} {name} test",
+            )
+            frames.append(records_frame(records, "test", self.episode_steps))
+        return frames, time.perf_counter() - started
+
+
+def _worker_main(job: _BaselineJob, sender: Connection) -> None:
+    try:
+        outcome = (True, job.run())
+    except BaseException as error:  # every failure goes back to the parent
+        outcome = (False, error)
+    try:
+        sender.send(outcome)
+    except Exception as error:  # e.g. an exception that does not pickle
+        sender.send((False, RuntimeError(f"baseline worker: {type(error).__name__}: {error}")))
+    sender.close()
+
+
+class _BaselineWorker:
+    """A forked process running a :class:`_BaselineJob` while this process trains SafeTail.
+
+    Forking (rather than spawning) shares the worlds without pickling them and starts at
+    once; the worker never touches TensorFlow.
+    """
+
+    def __init__(self, job: _BaselineJob) -> None:
+        self.job = job
+        context = multiprocessing.get_context("fork")
+        self._receiver, sender = context.Pipe(duplex=False)
+        self._process = context.Process(target=_worker_main, args=(job, sender), daemon=True,
+                                         name="yafs-safetail-baselines")
+        self._process.start()
+        sender.close()
+
+    def result(self) -> tuple[list[pd.DataFrame], float]:
+        """Wait for the job's result; re-raises its exception."""
+        try:
+            ok, payload = self._receiver.recv()
+        except EOFError:
+            self._process.join()
+            raise RuntimeError(
+                f"baseline worker ended without a result (exit code {self._process.exitcode})"
+            ) from None
+        self._process.join()
+        if not ok:
+            raise payload
+        return payload
+
+    def stop(self) -> None:
+        """End the process if it is still running (the run failed) and free the pipe."""
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join()
+        self._receiver.close()
+
+
+def _start_baselines(job: _BaselineJob, workers: int) -> list[_BaselineWorker]:
+    """Forks ``workers - 1`` processes (at most one per baseline), each taking every
+    (workers - 1)-th baseline; none with one worker or where ``fork`` does not exist."""
+    n_processes = min(workers - 1, len(job.names))
+    if n_processes < 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return []
+    # Progress bars stay with this process: bars from several processes garble a terminal.
+    return [
+        _BaselineWorker(dataclasses.replace(job, names=job.names[i::n_processes], progress_prefix=None))
+        for i in range(n_processes)
+    ]
+
+
 def _run_into(staging, config, use_case, learner_config, scenario, train_world, test_world, timings,
               started):
-    t0 = time.perf_counter()
-    from yafs_safetail.policy.learner import SafeTailLearner
-
-    # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
-    # the first time, so it is done here to show up as its own part of the setup time.
-    importlib.import_module("keras")
-    timings["tf_import"] = time.perf_counter() - t0
     train_steps = learner_config.train_steps
     test_steps = test_world.n_steps
     episode_steps = learner_config.episode_steps
-
-    # 3. the learner: fresh, or a saved policy evaluated without training
-    scales = StateScales.for_use_case(use_case.number)
-    if config.policy is None:
-        learner = SafeTailLearner(
-            scenario.n_servers,
-            state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
-            learner_config,
-            config.seed,
-            metadata={"use_case": use_case.number, "topology": str(config.topology)},
-        )
-    else:
-        learner = SafeTailLearner.load(config.policy, training=False)
-        if learner.n_servers != scenario.n_servers:
-            raise ExperimentError(
-                f"--policy {config.policy}: trained for {learner.n_servers} servers, "
-                f"the topology has {scenario.n_servers}"
-            )
-        learner_config = learner.config
-    timings["setup"] = time.perf_counter() - started
-
     yafs_dir = staging / YAFS_DIR
     if config.write_yafs_csv:
         yafs_dir.mkdir()
@@ -361,49 +441,88 @@ def _run_into(staging, config, use_case, learner_config, scenario, train_world, 
     def label(method: str, phase: str) -> str | None:
         return f"UC{use_case.number} {method} {phase}" if config.progress else None
 
-    frames = []
-
-    # 4. SafeTail training
-    def safetail(explore: bool, learn: bool) -> Callable[[EdgeModel], SubsetSelection]:
-        return lambda edge: SafeTailSelection(edge, learner, scales, explore=explore, learn=learn)
-
-    selections: list[SafeTailSelection] = []
-
-    def tracked(factory):
-        def build(edge):
-            selection = factory(edge)
-            selections.append(selection)
-            return selection
-        return build
-
-    if train_world is not None:
+    # 3. the baselines' test phase: in worker processes while this one trains SafeTail (they
+    #    need no TensorFlow, and every method's simulation is independent of the others')
+    baselines = tuple(baseline_names(config.redundancy_levels))
+    job = _BaselineJob(
+        names=baselines, seed=config.seed, world=test_world, scenario=scenario,
+        step_interval_s=config.step_interval_s, yafs_dir=yafs_dir if config.write_yafs_csv else None,
+        episode_steps=episode_steps, progress_prefix=f"UC{use_case.number}" if config.progress else None,
+    )
+    workers = _start_baselines(job, config.workers)
+    try:
         t0 = time.perf_counter()
-        records = simulate(train_world, scenario, tracked(safetail(True, True)),
-                           config.step_interval_s, results_path(results.SAFETAIL, "train"),
-                           label(results.SAFETAIL, "train"))
-        timings["simulation"] += time.perf_counter() - t0
-        frames.append(records_frame(records, "train", episode_steps))
+        from yafs_safetail.policy.learner import SafeTailLearner
 
-    # 5. testing: SafeTail greedy, then every baseline, all on the same test world
-    t0 = time.perf_counter()
-    records = simulate(test_world, scenario, tracked(safetail(False, False)),
-                       config.step_interval_s, results_path(results.SAFETAIL, "test"),
-                       label(results.SAFETAIL, "test"))
-    frames.append(records_frame(records, "test", episode_steps))
-    methods = [results.SAFETAIL]
-    for name in baseline_names(config.redundancy_levels):
-        rng = method_rng(config.seed, name)
-        records = simulate(test_world, scenario,
-                           lambda edge, name=name, rng=rng: make_baseline(name, edge, rng),
-                           config.step_interval_s, results_path(name, "test"), label(name, "test"))
+        # The learner builds its network with Keras; importing it (and TensorFlow) takes
+        # seconds the first time, so it is done here to show up as its own part of the setup.
+        importlib.import_module("keras")
+        timings["tf_import"] = time.perf_counter() - t0
+
+        # 4. the learner: fresh, or a saved policy evaluated without training
+        scales = StateScales.for_use_case(use_case.number)
+        if config.policy is None:
+            learner = SafeTailLearner(
+                scenario.n_servers,
+                state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
+                learner_config,
+                config.seed,
+                metadata={"use_case": use_case.number, "topology": str(config.topology)},
+            )
+        else:
+            learner = SafeTailLearner.load(config.policy, training=False)
+            if learner.n_servers != scenario.n_servers:
+                raise ExperimentError(
+                    f"--policy {config.policy}: trained for {learner.n_servers} servers, "
+                    f"the topology has {scenario.n_servers}"
+                )
+            learner_config = learner.config
+        timings["setup"] = time.perf_counter() - started
+
+        # 5. SafeTail: training, then testing greedily on the test world
+        selections: list[SafeTailSelection] = []
+
+        def safetail(explore: bool, learn: bool) -> Callable[[EdgeModel], SubsetSelection]:
+            def build(edge: EdgeModel) -> SubsetSelection:
+                selection = SafeTailSelection(edge, learner, scales, explore=explore, learn=learn)
+                selections.append(selection)
+                return selection
+            return build
+
+        frames = []
+        t0 = time.perf_counter()
+        if train_world is not None:
+            records = simulate(train_world, scenario, safetail(True, True), config.step_interval_s,
+                               results_path(results.SAFETAIL, "train"), label(results.SAFETAIL, "train"))
+            frames.append(records_frame(records, "train", episode_steps))
+        records = simulate(test_world, scenario, safetail(False, False), config.step_interval_s,
+                           results_path(results.SAFETAIL, "test"), label(results.SAFETAIL, "test"))
         frames.append(records_frame(records, "test", episode_steps))
-        methods.append(name)
-    timings["simulation"] += time.perf_counter() - t0
-    for selection in selections:
-        timings["decisions"] += selection.decision_time_s
-        timings["training"] += selection.training_time_s
-    # Simulation time is reported without the learner's share.
-    timings["simulation"] -= timings["decisions"] + timings["training"]
+        timings["simulation"] += time.perf_counter() - t0
+        for selection in selections:
+            timings["decisions"] += selection.decision_time_s
+            timings["training"] += selection.training_time_s
+        # Simulation time is reported without the learner's share.
+        timings["simulation"] -= timings["decisions"] + timings["training"]
+
+        # 6. the baselines' rows, in report order (here if no worker ran them)
+        by_name: dict[str, pd.DataFrame] = {}
+        if workers:
+            t0 = time.perf_counter()
+            for worker in workers:
+                worker_frames, wall_s = worker.result()
+                by_name.update(zip(worker.job.names, worker_frames, strict=True))
+                timings["baselines_in_workers"] = max(timings["baselines_in_workers"], wall_s)
+            timings["waiting_for_workers"] = time.perf_counter() - t0
+        else:
+            job_frames, wall_s = job.run()
+            by_name.update(zip(job.names, job_frames, strict=True))
+            timings["simulation"] += wall_s
+        frames += [by_name[name] for name in baselines]
+        methods = [results.SAFETAIL, *baselines]
+    finally:
+        for worker in workers:
+            worker.stop()
 
     # 6. results files, the policy, the figures
     requests = pd.concat(frames, ignore_index=True)

@@ -143,6 +143,7 @@ class EdgeModel:
         self._levels = world.n_contention_levels
         self._max_load = world.max_load
         self._compute_width = world.compute_by_processes_s.shape[2]
+        self._n_steps = world.n_steps
 
     # ------------------------------------------------------------------ requests and steps
     def begin_request(self, request_id: Any) -> int:
@@ -154,7 +155,7 @@ class EdgeModel:
         step = self._step_of_request.get(request_id)
         if step is None:
             step = self.requests_seen
-            if step >= self.world.n_steps:
+            if step >= self._n_steps:
                 raise EdgeModelError(
                     f"request {request_id!r} would be step {step}, but the world was drawn for "
                     f"{self.world.n_steps} steps; build it with more steps or run the Sim shorter"
