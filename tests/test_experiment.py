@@ -130,6 +130,17 @@ def test_three_workers_split_the_baselines_and_match(runs, tmp_path):
     assert compared_files(tmp_path / "run") == compared_files(runs[0].out_dir)
 
 
+def test_inside_a_daemonic_process_everything_runs_here(runs, tmp_path, monkeypatch):
+    class Daemonic:
+        daemon = True
+
+    # multiprocessing.Pool workers are daemonic and may not start processes of their own.
+    monkeypatch.setattr("yafs_safetail.experiment.multiprocessing.current_process", Daemonic)
+    report = run_experiment(tiny_config(tmp_path / "run", workers=2))
+    assert report.timings_s["baselines_in_workers"] == 0.0
+    assert compared_files(tmp_path / "run") == compared_files(runs[0].out_dir)
+
+
 def test_a_failing_baseline_worker_fails_the_run_and_writes_nothing(tmp_path, monkeypatch):
     out = tmp_path / "run"
     out.mkdir()

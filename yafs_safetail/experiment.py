@@ -415,9 +415,11 @@ class _BaselineWorker:
 
 def _start_baselines(job: _BaselineJob, workers: int) -> list[_BaselineWorker]:
     """Forks ``workers - 1`` processes (at most one per baseline), each taking every
-    (workers - 1)-th baseline; none with one worker or where ``fork`` does not exist."""
+    (workers - 1)-th baseline; none with one worker, where ``fork`` does not exist, or inside a
+    daemonic process (e.g. a ``multiprocessing.Pool`` worker, which may not have children)."""
     n_processes = min(workers - 1, len(job.names))
-    if n_processes < 1 or "fork" not in multiprocessing.get_all_start_methods():
+    if (n_processes < 1 or "fork" not in multiprocessing.get_all_start_methods()
+            or multiprocessing.current_process().daemon):
         return []
     # Progress bars stay with this process: bars from several processes garble a terminal.
     return [
