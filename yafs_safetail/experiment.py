@@ -118,7 +118,15 @@ class ExperimentConfig:
 
 @dataclass
 class ExperimentReport:
-    """What a finished run produced and where the time went (seconds of wall time)."""
+    """What a finished run produced and where the time went.
+
+    ``timings_s`` (seconds of wall time): ``setup`` (checks, traces, worlds, learner; includes
+    ``tf_import``), ``simulation`` (this process's simulations without the learner's share),
+    ``decisions`` and ``training`` (SafeTail's learner), ``baselines_in_workers`` (the
+    longest worker's wall time, overlapping the above; 0 with one worker),
+    ``waiting_for_workers`` (after SafeTail's test), ``writing`` (results files and policy),
+    ``plotting`` and ``total``.
+    """
 
     out_dir: Path
     summary: pd.DataFrame
