@@ -36,7 +36,8 @@ def tiny_config(out_dir: Path, **overrides) -> ExperimentConfig:
 def compared_files(folder: Path) -> dict[str, bytes]:
     """Every results file that must be reproducible, by path relative to ``folder``."""
     files = [folder / "requests.csv", folder / "summary.csv", folder / "summary.md",
-             folder / "run.json", *sorted((folder / YAFS_DIR).glob("*.csv"))]
+             folder / "run.json", folder / "policy.keras", folder / "policy.keras.json",
+             *sorted((folder / YAFS_DIR).glob("*.csv"))]
     return {str(path.relative_to(folder)): path.read_bytes() for path in files}
 
 

@@ -48,6 +48,7 @@ from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
 from yafs_safetail.placement import EdgePlacement
+from yafs_safetail.policy.learner import read_policy_sidecar
 from yafs_safetail.policy.presets import LearnerConfig, get_preset
 from yafs_safetail.policy.state import StateScales, state_dim
 from yafs_safetail.population import DEFAULT_STEP_INTERVAL_S, EdgePopulation
@@ -316,8 +317,18 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
                 f"--redundancy: x={x!r} must be an integer in 1..{scenario.n_servers} "
                 f"(the servers in {config.topology})"
             )
-    if config.policy is not None and not Path(config.policy).is_file():
-        raise ExperimentError(f"--policy {config.policy}: no such file")
+    if config.policy is not None:
+        if not Path(config.policy).is_file():
+            raise ExperimentError(f"--policy {config.policy}: no such file")
+        saved = read_policy_sidecar(config.policy)
+        expected_dim = state_dim(scenario.n_servers, len(use_case.gamma_columns),
+                                 len(scenario.user_location))
+        if int(saved["n_servers"]) != scenario.n_servers or int(saved["state_dim"]) != expected_dim:
+            raise ExperimentError(
+                f"--policy {config.policy}: trained for {saved['n_servers']} servers and "
+                f"{saved['state_dim']} state entries; use case {use_case.number} on "
+                f"{config.topology} has {scenario.n_servers} servers and {expected_dim}"
+            )
 
     # 2. the two phases' worlds (common random numbers for every method of a phase)
     episode_steps = learner_config.episode_steps

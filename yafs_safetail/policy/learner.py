@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -31,11 +32,27 @@ FIXED_SAVE_DATE = "1980-01-01@00:00:00"
 _FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
 
+_SHARED_OBJECT_ID = re.compile(r'"shared_object_id": (\d+)')
+
+
+def _renumber_shared_objects(config_text: str) -> str:
+    """Replace Keras's ``shared_object_id`` values (Python object addresses, different in every
+    process) by 1, 2, ... in order of first appearance; equal ids stay equal, which is all
+    Keras uses them for when loading."""
+    numbers: dict[str, int] = {}
+
+    def renumber(match: re.Match[str]) -> str:
+        number = numbers.setdefault(match.group(1), len(numbers) + 1)
+        return f'"shared_object_id": {number}'
+
+    return _SHARED_OBJECT_ID.sub(renumber, config_text)
+
+
 def _make_reproducible(path: Path) -> None:
     """Rewrite a ``.keras`` archive with a fixed save date and fixed entry timestamps.
 
-    The weights and the config inside are already deterministic; only Keras's
-    ``metadata.json`` date and the zip entries' modification times change between saves.
+    The weights are already deterministic; Keras's ``metadata.json`` date, the object
+    addresses in ``config.json`` and the zip entries' modification times are not.
     """
     staging = path.with_name(f".{path.name}.tmp")
     with zipfile.ZipFile(path) as source, zipfile.ZipFile(staging, "w", zipfile.ZIP_DEFLATED) as target:
@@ -45,11 +62,31 @@ def _make_reproducible(path: Path) -> None:
                 metadata = json.loads(data)
                 metadata["date_saved"] = FIXED_SAVE_DATE
                 data = json.dumps(metadata).encode("utf-8")
+            elif entry.filename == "config.json":
+                data = _renumber_shared_objects(data.decode("utf-8")).encode("utf-8")
             info = zipfile.ZipInfo(entry.filename, date_time=_FIXED_ZIP_TIME)
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = entry.external_attr
             target.writestr(info, data)
     os.replace(staging, path)
+
+
+def read_policy_sidecar(path: str | Path) -> dict[str, Any]:
+    """The JSON sidecar of a saved policy (n_servers, state_dim, config, ...), read without
+    TensorFlow, so a mismatch can be reported before anything heavy is loaded.
+
+    Raises:
+        PolicyFileError: a missing or malformed sidecar.
+    """
+    sidecar_path = Path(str(path) + SIDECAR_SUFFIX)
+    if not sidecar_path.is_file():
+        raise PolicyFileError(f"{sidecar_path}: file not found (saved with the policy)")
+    try:
+        info = json.loads(sidecar_path.read_text())
+        int(info["n_servers"]), int(info["state_dim"]), LearnerConfig.from_dict(info["config"])
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise PolicyFileError(f"{sidecar_path}: malformed sidecar: {exc}") from exc
+    return info
 
 
 class SafeTailLearner:

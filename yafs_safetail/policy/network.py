@@ -41,7 +41,10 @@ def build_network(
     import keras
 
     layer_seeds = np.random.SeedSequence(init_seed).generate_state(len(config.hidden_widths) + 1)
-    layers: list[object] = [keras.Input(shape=(state_dim,), dtype="float32")]
+    # Every object is named explicitly: Keras's automatic names get a per-process counter
+    # ("adam_1", "input_layer_2"), which would make saved policies differ between two runs
+    # in one process.
+    layers: list[object] = [keras.Input(shape=(state_dim,), dtype="float32", name="state")]
     for k, width in enumerate(config.hidden_widths):
         layers.append(
             keras.layers.Dense(
@@ -63,7 +66,7 @@ def build_network(
     # No XLA: avoids a compile step per input shape (partial last batches) and keeps training
     # on the plain, op-deterministic kernels.
     model.compile(
-        optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate),
+        optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate, name="adam"),
         loss="categorical_crossentropy",
         jit_compile=False,
     )
