@@ -97,6 +97,10 @@ class EdgeTopology:
         conditions: distance condition per edge server node.
         load_devices: load-trace device per edge server node, or None (default: index).
         user_location: (x, y) of the user; zeros when absent.
+        user_link_bw: BW of the user–access point link (Mbit/s, YAFS's unit).
+        user_link_pr: PR of the user–access point link (s).
+        server_link_bw: BW of each access point–server link, per edge server node (Mbit/s).
+        server_link_pr: PR of each access point–server link, per edge server node (s).
     """
 
     source: str
@@ -107,6 +111,10 @@ class EdgeTopology:
     conditions: dict[int | str, int]
     load_devices: dict[int | str, int | None]
     user_location: tuple[float, float]
+    user_link_bw: float
+    user_link_pr: float
+    server_link_bw: dict[int | str, float]
+    server_link_pr: dict[int | str, float]
 
 
 def load_topology(source: JsonSource) -> EdgeTopology:
@@ -183,7 +191,9 @@ def load_topology(source: JsonSource) -> EdgeTopology:
     user, access_point = users[0], access_points[0]
 
     conditions: dict[int | str, int] = {}
-    user_linked = False
+    server_link_bw: dict[int | str, float] = {}
+    server_link_pr: dict[int | str, float] = {}
+    user_link_bw = user_link_pr = None
     for index, link in enumerate(links):
         where = f"link[{index}]"
         if not isinstance(link, dict):
@@ -200,7 +210,7 @@ def load_topology(source: JsonSource) -> EdgeTopology:
                 )
         pair = set(ends)
         if pair == {user, access_point}:
-            user_linked = True
+            user_link_bw, user_link_pr = float(link["BW"]), float(link["PR"])
             continue
         servers = [node for node in ends if types[node] == EDGE_SERVER_TYPE]
         if len(servers) != 1 or access_point not in pair:
@@ -218,7 +228,9 @@ def load_topology(source: JsonSource) -> EdgeTopology:
                 name, f"{where}.{CONDITION_KEY}", f"missing or not an integer: {condition!r}"
             )
         conditions[server] = condition
-    if not user_linked:
+        server_link_bw[server] = float(link["BW"])
+        server_link_pr[server] = float(link["PR"])
+    if user_link_bw is None:
         raise ScenarioError(name, "link", "no link between the user and the access point")
     for server in server_order:
         if server not in conditions:
@@ -234,6 +246,10 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         conditions=conditions,
         load_devices=load_devices,
         user_location=user_location,
+        user_link_bw=user_link_bw,
+        user_link_pr=user_link_pr,
+        server_link_bw=server_link_bw,
+        server_link_pr=server_link_pr,
     )
 
 
@@ -317,6 +333,26 @@ class EdgeScenario:
     server_nodes: tuple[int | str, ...]
     server_conditions: tuple[int, ...]
     server_load_devices: tuple[int, ...]
+
+    @property
+    def server_link_bw(self) -> tuple[float, ...]:
+        """BW (Mbit/s) of each server's access-point link, per server index."""
+        return tuple(self.topology.server_link_bw[node] for node in self.server_nodes)
+
+    @property
+    def server_link_pr(self) -> tuple[float, ...]:
+        """PR (s) of each server's access-point link, per server index."""
+        return tuple(self.topology.server_link_pr[node] for node in self.server_nodes)
+
+    @property
+    def user_link_bw(self) -> float:
+        """BW (Mbit/s) of the user's access-point link."""
+        return self.topology.user_link_bw
+
+    @property
+    def user_link_pr(self) -> float:
+        """PR (s) of the user's access-point link."""
+        return self.topology.user_link_pr
 
     @property
     def n_servers(self) -> int:
