@@ -80,6 +80,50 @@ def _learner_diagnostics(folders: Sequence[Path]) -> list[str]:
     return lines
 
 
+#: A baseline that falls back on more than this share of requests has fallback-set tails.
+FALLBACK_NOTE_RATE = 0.01
+
+
+def _why_lines(folders: Sequence[Path]) -> list[str]:
+    """Reasons, read off the runs themselves, why ratios may differ from the paper's."""
+    summaries = [results.read_summary_csv(f).set_index("method") for f in folders]
+    runs = [results.read_run_json(f) for f in folders]
+    mean = pd.concat(summaries).groupby(level=0).mean(numeric_only=True)
+    lines = []
+    epsilon = [float(r.extra.get("final_epsilon", float("nan"))) for r in runs]
+    if runs[0].train_steps and min(epsilon) > 0.5:
+        lines.append(
+            f"- SafeTail's ε after training is {min(epsilon):.4f}–{max(epsilon):.4f}: with this "
+            "preset the training phase is almost pure exploration, so the tested policy is close "
+            "to the untrained network's argmax (docs/deviations.md D1)."
+        )
+    safetail = mean.loc[results.SAFETAIL]
+    lines.append(
+        f"- SafeTail sends {safetail['mean_n_selected']:.2f} copies per request on average "
+        f"(the paper reports 1 to 3) and meets the target on {safetail['target_met_rate']:.0%} "
+        f"of requests; Oracle meets it on {mean.loc[results.ORACLE, 'target_met_rate']:.0%}."
+    )
+    fallback_s = runs[0].extra.get("fallback_latency_s")
+    falling_back = [
+        f"{method} {row['fallback_rate']:.1%} (from about p{100 * (1 - row['fallback_rate']):.0f})"
+        for method, row in mean.loc[results.sort_methods(mean.index)].iterrows()
+        if method != results.SAFETAIL and row["fallback_rate"] > FALLBACK_NOTE_RATE
+    ]
+    if falling_back:
+        lines.append(
+            f"- Baselines that fall back to the on-device version ({fallback_s} s) when every "
+            f"chosen server is full: {', '.join(falling_back)}. Their percentiles from there on "
+            "are the fallback latency, so ratios against them there measure the fallback model "
+            "(docs/deviations.md D5), not edge latency."
+        )
+    if safetail["fallback_rate"] > FALLBACK_NOTE_RATE:
+        lines.append(
+            f"- SafeTail itself falls back on {safetail['fallback_rate']:.1%} of requests, which "
+            "sets its own p99."
+        )
+    return lines
+
+
 def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Path) -> list[str]:
     run = results.read_run_json(folders[0])
     stats = results.aggregate_summaries(folders)
@@ -103,6 +147,10 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
         "### What SafeTail did",
         "",
         *_learner_diagnostics(folders),
+        "",
+        "### Why our ratios may differ (read off these runs)",
+        "",
+        *_why_lines(folders),
         "",
         f"### Figures (seed {run.seed})",
         "",
