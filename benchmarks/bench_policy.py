@@ -20,29 +20,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from yafs_safetail.edge.observation import Observation
 from yafs_safetail.policy import SafeTailLearner, StateScales, encode_state, state_dim
 from yafs_safetail.policy.presets import get_preset
+from yafs_safetail.policy.state import random_observation
 
 N_SERVERS = 5
 
 
-def random_observation(rng: np.random.Generator) -> Observation:
-    n = N_SERVERS
-    return Observation(
-        server_uplink_bps=rng.uniform(2e6, 20e6, n),
-        server_downlink_bps=rng.uniform(2e6, 20e6, n),
-        server_memory_util=rng.uniform(0.0, 1.0, n),
-        server_cpu_util=rng.uniform(0.0, 1.0, n),
-        server_active_users=rng.integers(0, 5, n),
-        server_median_propagation_s=rng.uniform(0.03, 0.7, n),
-        input_bytes=rng.uniform(50e3, 300e3),
-        est_output_bytes=rng.uniform(1e3, 8e3),
-        gamma=np.empty(0),
-        user_location=rng.uniform(-1.0, 1.0, 2),
-        user_uplink_bps=rng.uniform(5e6, 20e6),
-        user_downlink_bps=rng.uniform(5e6, 20e6),
-    )
 
 
 def per_call_us(fn: Callable[[int], object], repeats: int) -> list[float]:
@@ -70,7 +54,7 @@ def main() -> None:
     learner = SafeTailLearner(N_SERVERS, dim, config, seed=0)
     model = learner.model
     rng = np.random.default_rng(1)
-    observations = [random_observation(rng) for _ in range(1000)]
+    observations = [random_observation(rng, N_SERVERS) for _ in range(1000)]
     rows = np.stack([encode_state(o, scales) for o in observations])
 
     def decide(i: int) -> int:

@@ -8,16 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from yafs_safetail.edge.model import EdgeModel, edge_application
 from yafs_safetail.edge.topology_io import load_scenario
 from yafs_safetail.edge.traces import load_traces
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world, link_scales, trace_inputs
-from yafs_safetail.placement import EdgePlacement
-from yafs_safetail.population import EdgePopulation
+from yafs_safetail.experiment import simulate
 from yafs_safetail.selection import Oracle, RandX
-from yafs_safetail.yafs.core import Sim
-from yafs_safetail.yafs.topology import Topology
 
 ROOT = Path(__file__).resolve().parents[1]
 TOPOLOGY = ROOT / "topologies" / "paper_5servers.json"
@@ -93,27 +89,13 @@ def test_user_link_bw_scales_the_users_bandwidth_and_the_target(tmp_path, inputs
     assert np.all(slow.target_s > base.target_s)
 
 
-def records(world, make_selection) -> list:
-    model = EdgeModel(world)
-    scenario = world.scenario
-    topology = Topology()
-    topology.load(scenario.topology.data)
-    sim = Sim(topology, link_delay=model, service_model=model, write_results=False)
-    selection = make_selection(model)
-    population = EdgePopulation(scenario.user_node)
-    sim.deploy_app(edge_application(scenario.app_name, scenario.module_name),
-                   EdgePlacement(scenario.placement), population, selection)
-    sim.run(until=population.until_s(world.n_steps))
-    return selection.records
-
-
 def test_a_very_slow_link_raises_the_fallback_and_oracle_stays_a_lower_bound(tmp_path, inputs):
     base = world_of(TOPOLOGY, inputs)
     crawling = world_of(edited(tmp_path, lambda d: server_link(d, 6).update(BW=0.2)), inputs)
     assert base.fallback_latency_s == get_use_case(1).fallback_latency_s
     assert crawling.fallback_latency_s > base.fallback_latency_s
-    oracle = records(crawling, Oracle)
-    rand = records(crawling, lambda m: RandX(m, 1, np.random.default_rng(0)))
+    oracle = simulate(crawling, Oracle)
+    rand = simulate(crawling, lambda m: RandX(m, 1, np.random.default_rng(0)))
     assert max(r.latency_s for r in rand) > 30  # the crawling link is really used
     for o, r in zip(oracle, rand, strict=True):
         assert o.step == r.step and o.latency_s <= r.latency_s + 1e-12

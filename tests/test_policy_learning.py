@@ -29,6 +29,7 @@ from yafs_safetail.policy import (
     subset_of,
 )
 from yafs_safetail.policy.presets import LearnerConfig, get_preset
+from yafs_safetail.policy.state import random_observation
 
 N_SERVERS = 5
 TARGET_S = 0.55
@@ -36,22 +37,6 @@ SCALES = StateScales.for_use_case(1)
 STATE_DIM = state_dim(N_SERVERS, 0, 2)
 
 
-def toy_observation(rng: np.random.Generator) -> Observation:
-    n = N_SERVERS
-    return Observation(
-        server_uplink_bps=rng.uniform(2e6, 20e6, n),
-        server_downlink_bps=rng.uniform(2e6, 20e6, n),
-        server_memory_util=rng.uniform(0.0, 1.0, n),
-        server_cpu_util=rng.uniform(0.0, 1.0, n),
-        server_active_users=rng.integers(0, 5, n),
-        server_median_propagation_s=rng.uniform(0.03, 0.7, n),
-        input_bytes=rng.uniform(50e3, 300e3),
-        est_output_bytes=rng.uniform(1e3, 8e3),
-        gamma=np.empty(0),
-        user_location=rng.uniform(-1.0, 1.0, 2),
-        user_uplink_bps=rng.uniform(5e6, 20e6),
-        user_downlink_bps=rng.uniform(5e6, 20e6),
-    )
 
 
 def toy_latency_s(obs: Observation, subset: tuple[int, ...], rng: np.random.Generator) -> float:
@@ -90,7 +75,7 @@ def evaluate_greedy(learner: SafeTailLearner, seed: int, n_eval: int) -> tuple[f
     optimal = 0
     rewards = []
     for _ in range(n_eval):
-        obs = toy_observation(eval_rng)
+        obs = random_observation(eval_rng, N_SERVERS)
         action = learner.act(encode_state(obs, SCALES), explore=False)
         subset = subset_of(action, N_SERVERS)
         optimal += is_optimal(obs, action)
@@ -107,7 +92,7 @@ def run_toy(config: LearnerConfig, seed: int, n_eval: int = 2000) -> ToyResult:
     initial_fraction, _ = evaluate_greedy(learner, seed, n_eval)
     env_rng = np.random.default_rng(seed + 1_000_003)
     for _ in range(config.train_steps):
-        obs = toy_observation(env_rng)
+        obs = random_observation(env_rng, N_SERVERS)
         state = encode_state(obs, SCALES)
         action = learner.act(state, explore=True)
         subset = subset_of(action, N_SERVERS)
@@ -130,7 +115,7 @@ def random_policy_optimal_fraction(n_eval: int = 20000, seed: int = 7) -> float:
     rng = np.random.default_rng(seed)
     hits = 0
     for _ in range(n_eval):
-        hits += is_optimal(toy_observation(rng), int(rng.integers((1 << N_SERVERS) - 1)))
+        hits += is_optimal(random_observation(rng, N_SERVERS), int(rng.integers((1 << N_SERVERS) - 1)))
     return hits / n_eval
 
 

@@ -7,18 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from yafs_safetail.edge.model import EdgeModel, edge_application
+from yafs_safetail.edge.model import EdgeModel
 from yafs_safetail.edge.topology_io import load_scenario
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world, load_inputs
-from yafs_safetail.placement import EdgePlacement
+from yafs_safetail.experiment import simulate
 from yafs_safetail.policy import StateScales, reward, state_dim, subset_of
 from yafs_safetail.policy.learner import SafeTailLearner
 from yafs_safetail.policy.presets import get_preset
-from yafs_safetail.population import EdgePopulation
 from yafs_safetail.selection import SafeTailSelection, SelectionError
-from yafs_safetail.yafs.core import Sim
-from yafs_safetail.yafs.topology import Topology
 
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = 160  # > κ = 128: one training round happens while learning
@@ -37,17 +34,16 @@ def new_learner(world) -> SafeTailLearner:
                            get_preset("tuned", 1), seed=3)
 
 
-def run(world, learner, explore, learn):
-    model = EdgeModel(world)
-    topology = Topology()
-    topology.load(world.scenario.topology.data)
-    sim = Sim(topology, link_delay=model, service_model=model, write_results=False)
-    selection = SafeTailSelection(model, learner, StateScales.for_use_case(1), explore=explore, learn=learn)
-    population = EdgePopulation(world.scenario.user_node)
-    sim.deploy_app(edge_application(world.scenario.app_name, world.scenario.module_name),
-                   EdgePlacement(world.scenario.placement), population, selection)
-    sim.run(until=population.until_s(STEPS))
-    return selection
+def run(world, learner, explore, learn) -> SafeTailSelection:
+    built = []
+
+    def make(model):
+        built.append(SafeTailSelection(model, learner, StateScales.for_use_case(1),
+                                       explore=explore, learn=learn))
+        return built[0]
+
+    simulate(world, make)
+    return built[0]
 
 
 def test_learning_run_feeds_every_request_back_with_its_eq5_reward(world):

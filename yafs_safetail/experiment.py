@@ -43,7 +43,7 @@ import pandas as pd
 import yafs_safetail
 from yafs_safetail import results
 from yafs_safetail.edge.model import EdgeModel, edge_application
-from yafs_safetail.edge.topology_io import EdgeScenario, load_scenario
+from yafs_safetail.edge.topology_io import load_scenario
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
@@ -206,17 +206,19 @@ def _publish(staging: Path, out_dir: Path) -> None:
 
 def simulate(
     world: EdgeWorld,
-    scenario: EdgeScenario,
     make_selection: Callable[[EdgeModel], SubsetSelection],
-    step_interval_s: float,
-    results_path: Path | None,
+    step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
+    results_path: Path | None = None,
     progress_label: str | None = None,
 ) -> list[RequestRecord]:
     """Run every request of ``world`` through a fresh Sim with the given selection.
 
+    This is the one way a method meets the edge world: the experiment, the examples and the
+    tests all call it (a YAFS-style script can do the same by hand, see
+    ``examples/paper_scenario/main.py``).
+
     Args:
-        world: the phase's pre-drawn world.
-        scenario: topology and placement.
+        world: the phase's pre-drawn world (its scenario gives topology and placement).
         make_selection: builds the method's selection on the run's edge model.
         step_interval_s: time between requests.
         results_path: YAFS results path prefix (None: no YAFS CSVs).
@@ -225,6 +227,7 @@ def simulate(
     Returns:
         One record per request, in step order.
     """
+    scenario = world.scenario
     edge = EdgeModel(world)
     topology = Topology()
     topology.load(scenario.topology.data)
@@ -359,7 +362,6 @@ class _BaselineJob:
     names: tuple[str, ...]
     seed: int
     world: EdgeWorld
-    scenario: EdgeScenario
     step_interval_s: float
     yafs_dir: Path | None
     episode_steps: int
@@ -372,7 +374,7 @@ class _BaselineJob:
         for name in self.names:
             rng = method_rng(self.seed, name)
             records = simulate(
-                self.world, self.scenario,
+                self.world,
                 lambda edge, name=name, rng=rng: make_baseline(name, edge, rng),
                 self.step_interval_s,
                 None if self.yafs_dir is None else self.yafs_dir / f"{name}_test",
@@ -466,7 +468,7 @@ def _run_into(staging, config, use_case, learner_config, scenario, train_world, 
     #    need no TensorFlow, and every method's simulation is independent of the others')
     baselines = tuple(baseline_names(config.redundancy_levels))
     job = _BaselineJob(
-        names=baselines, seed=config.seed, world=test_world, scenario=scenario,
+        names=baselines, seed=config.seed, world=test_world,
         step_interval_s=config.step_interval_s, yafs_dir=yafs_dir if config.write_yafs_csv else None,
         episode_steps=episode_steps, progress_prefix=f"UC{use_case.number}" if config.progress else None,
     )
@@ -513,10 +515,10 @@ def _run_into(staging, config, use_case, learner_config, scenario, train_world, 
         frames = []
         t0 = time.perf_counter()
         if train_world is not None:
-            records = simulate(train_world, scenario, safetail(True, True), config.step_interval_s,
+            records = simulate(train_world, safetail(True, True), config.step_interval_s,
                                results_path(results.SAFETAIL, "train"), label(results.SAFETAIL, "train"))
             frames.append(records_frame(records, "train", episode_steps))
-        records = simulate(test_world, scenario, safetail(False, False), config.step_interval_s,
+        records = simulate(test_world, safetail(False, False), config.step_interval_s,
                            results_path(results.SAFETAIL, "test"), label(results.SAFETAIL, "test"))
         frames.append(records_frame(records, "test", episode_steps))
         timings["simulation"] += time.perf_counter() - t0

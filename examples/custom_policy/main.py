@@ -15,16 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from yafs_safetail.edge.model import EdgeModel, edge_application
+from yafs_safetail.edge.model import EdgeModel
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.topology_io import load_scenario
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, build_world, load_inputs
-from yafs_safetail.placement import EdgePlacement
-from yafs_safetail.population import EdgePopulation
+from yafs_safetail.experiment import simulate
 from yafs_safetail.selection import SubsetSelection, make_baseline
-from yafs_safetail.yafs.core import Sim
-from yafs_safetail.yafs.topology import Topology
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -46,20 +43,6 @@ class NearestFreeX(SubsetSelection):
         return tuple(order[: self.x].tolist())
 
 
-def run(method_factory, scenario, world) -> list:
-    """One Sim over the shared world; returns the method's per-request records."""
-    edge = EdgeModel(world)
-    topology = Topology()
-    topology.load(scenario.topology.data)
-    sim = Sim(topology, link_delay=edge, service_model=edge, write_results=False)
-    selection = method_factory(edge)
-    population = EdgePopulation(scenario.user_node)
-    sim.deploy_app(edge_application(scenario.app_name, scenario.module_name),
-                   EdgePlacement(scenario.placement), population, selection)
-    sim.run(until=population.until_s(world.n_steps))
-    return selection.records
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--uc", type=int, default=1)
@@ -79,7 +62,7 @@ def main() -> None:
     print(f"UC{use_case.number}, {args.steps} requests, seed {args.seed}")
     print(f"{'method':<14} {'median':>7} {'p90':>7} {'p95':>7} {'p99':>7} {'fallbacks':>9}")
     for name, factory in methods.items():
-        records = run(factory, scenario, world)
+        records = simulate(world, factory)
         latency = np.array([r.latency_s for r in records])
         p50, p90, p95, p99 = np.percentile(latency, [50, 90, 95, 99])
         fallbacks = sum(r.fallback for r in records)

@@ -163,3 +163,26 @@ def encode_state(obs: Observation, scales: StateScales) -> np.ndarray:
     out[k + d + 1] = obs.user_downlink_bps
     out *= inverse
     return out
+
+
+def random_observation(rng: np.random.Generator, n_servers: int = 5) -> Observation:
+    """A plausible random ω^t (UC1-like: no Γ) for benchmarks and synthetic learning checks.
+
+    Bandwidths 2-20 Mbit/s, 0-4 active users, median propagation 30-700 ms, inputs of
+    50-300 kB: the ranges of the shipped traces, drawn uniformly from ``rng``.
+    """
+    n = n_servers
+    return Observation(
+        server_uplink_bps=rng.uniform(2e6, 20e6, n),
+        server_downlink_bps=rng.uniform(2e6, 20e6, n),
+        server_memory_util=rng.uniform(0.0, 1.0, n),
+        server_cpu_util=rng.uniform(0.0, 1.0, n),
+        server_active_users=rng.integers(0, 5, n),
+        server_median_propagation_s=rng.uniform(0.03, 0.7, n),
+        input_bytes=rng.uniform(50e3, 300e3),
+        est_output_bytes=rng.uniform(1e3, 8e3),
+        gamma=np.empty(0),
+        user_location=rng.uniform(-1.0, 1.0, 2),
+        user_uplink_bps=rng.uniform(5e6, 20e6),
+        user_downlink_bps=rng.uniform(5e6, 20e6),
+    )
