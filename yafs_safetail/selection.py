@@ -7,8 +7,8 @@ server (redundant dispatch: one copy each), routes every reply back to the user'
 and, once every copy has settled, builds a :class:`RequestRecord` (L_R = the first reply,
 Eq. 2, or the on-device fallback when every copy was refused).
 
-The paper's baselines (§V-B) are subclasses: :class:`Oracle`, :class:`RandX`,
-:class:`MinLoadX`, :class:`MinPropX`.
+SafeTail itself (:class:`SafeTailSelection`, §III) and the paper's baselines (§V-B) are
+subclasses: :class:`Oracle`, :class:`RandX`, :class:`MinLoadX`, :class:`MinPropX`.
 """
 
 from __future__ import annotations
