@@ -109,7 +109,7 @@ def test_server_at_max_load_refuses_and_all_refused_falls_back(traces):
             assert np.isnan(record.compute_s)
     assert any(r.refused for r in selection.records)
     # Own copies are released: nothing is left running after the run.
-    assert not model._own_running.any()
+    assert not any(model._own_running)
 
 
 def test_compute_uses_k_equal_active_users_plus_one(traces):

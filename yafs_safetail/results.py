@@ -225,6 +225,16 @@ def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
+def _results_file(path: str | os.PathLike[str], name: str) -> Path:
+    """``path`` itself, or the file ``name`` inside it when it is a results folder; must exist."""
+    file = Path(path)
+    if file.is_dir():
+        file = file / name
+    if not file.is_file():
+        raise ResultsFileError(f"{file}: file not found")
+    return file
+
+
 def read_requests_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     """Read and check a ``requests.csv`` (or the one inside a results folder).
 
@@ -239,11 +249,7 @@ def read_requests_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
             is of the wrong kind; the one-line message names the file, the column and, for a
             bad value, the line.
     """
-    file = Path(path)
-    if file.is_dir():
-        file = file / REQUESTS_FILE
-    if not file.is_file():
-        raise ResultsFileError(f"{file}: file not found")
+    file = _results_file(path, REQUESTS_FILE)
     text_columns = [c for c, kind in REQUESTS_SCHEMA.items() if kind == "str"]
     try:
         raw = pd.read_csv(file, dtype={c: str for c in text_columns}, low_memory=False)
@@ -369,11 +375,7 @@ def read_run_json(path: str | os.PathLike[str]) -> RunMetadata:
     Raises:
         ResultsFileError: missing file, bad JSON, a missing key or a value of the wrong type.
     """
-    file = Path(path)
-    if file.is_dir():
-        file = file / RUN_FILE
-    if not file.is_file():
-        raise ResultsFileError(f"{file}: file not found")
+    file = _results_file(path, RUN_FILE)
     try:
         data = json.loads(file.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
@@ -459,11 +461,7 @@ def read_summary_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     Raises:
         ResultsFileError: missing or unreadable file, or a missing column.
     """
-    file = Path(path)
-    if file.is_dir():
-        file = file / SUMMARY_CSV_FILE
-    if not file.is_file():
-        raise ResultsFileError(f"{file}: file not found")
+    file = _results_file(path, SUMMARY_CSV_FILE)
     try:
         frame = pd.read_csv(file, dtype={"method": str, "preset": str}, keep_default_na=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError,

@@ -210,7 +210,9 @@ class SubsetSelection(Selection):
         else:
             winner = model.server_index(first.dst_node)
             latency_s = first.time_end - outcome.time_emit
-            upload_s, propagation_s, download_s, compute_s = model.copy_parts_s(outcome.request_id, winner)
+            parts = model.copy_breakdown(outcome.request_id, winner)
+            upload_s, propagation_s = parts.upload_s, parts.propagation_s
+            download_s, compute_s = parts.download_s, parts.compute_s
         record = RequestRecord(
             method=self.name,
             step=step,

@@ -32,8 +32,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from yafs_safetail.edge.latency import CopyLatency
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.world import EdgeWorld
@@ -123,7 +121,8 @@ class EdgeModel:
         self.fallback_latency_s = world.fallback_latency_s
         self.requests_seen = 0
         self._server_of_node = {node: index for index, node in enumerate(self.server_nodes)}
-        self._own_running = np.zeros(self.n_servers, dtype=np.int64)
+        # A list, not an array: it is read and updated per copy, where NumPy scalars are slow.
+        self._own_running = [0] * self.n_servers
         self._step_of_request: dict[Any, int] = {}
         # Per request id: each server index's copy state (None: no copy sent there).
         self._copies: dict[Any, list[_CopyState | None]] = {}
@@ -163,10 +162,6 @@ class EdgeModel:
             self._step_of_request[request_id] = step
             self.requests_seen += 1
         return step
-
-    def step_of(self, request_id: Any) -> int:
-        """The step of a request already seen (KeyError otherwise)."""
-        return self._step_of_request[request_id]
 
     def observe(self, step: int) -> Observation:
         """ω^t: the servers' state when step ``step``'s request is issued (now)."""
@@ -208,18 +203,6 @@ class EdgeModel:
             output_download_s=state.output_s,
         )
 
-    def copy_parts_s(self, request_id: Any, server: int) -> tuple[float, float, float, float] | None:
-        """(upload_s, propagation_s, download_s, compute_s) of a copy: the sums of
-        :meth:`copy_breakdown`'s fields without building it (once per request).
-
-        Returns None for a copy that was refused or never sent.
-        """
-        state = self._copy_state(request_id, server)
-        if state is None:
-            return None
-        transfer_s = state.input_s + state.output_s
-        return transfer_s, state.rtt_s + state.rtt_s, transfer_s, state.compute_s
-
     def _copy_state(self, request_id: Any, server: int) -> _CopyState | None:
         states = self._copies.get(request_id)
         state = None if states is None or not 0 <= server < self.n_servers else states[server]
@@ -236,7 +219,7 @@ class EdgeModel:
         step = self._step_of_request.get(request_id)
         if step is None:
             step = self.begin_request(request_id)
-        others = self._background[step][server] + int(self._own_running[server])
+        others = self._background[step][server] + self._own_running[server]
         level = others if others < self._levels else self._levels - 1
         column = server * self._levels + level
         state = _CopyState(
@@ -273,7 +256,7 @@ class EdgeModel:
         """Refuse when the server already has ``max_load`` active users; else start a process."""
         server = self._server_of_node[node]
         state = self._copies[message.id][server]
-        active = self._background[state.step][server] + int(self._own_running[server])
+        active = self._background[state.step][server] + self._own_running[server]
         if active >= self._max_load:
             state.refused = True
             return False
