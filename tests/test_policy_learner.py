@@ -13,7 +13,12 @@ import pytest
 from yafs_safetail.policy import SafeTailLearner, target_vector
 from yafs_safetail.policy.learner import PolicyFileError
 from yafs_safetail.policy.network import NumpyForward
-from yafs_safetail.policy.presets import LearnerConfig, get_preset
+from yafs_safetail.policy.presets import (
+    ORIGINAL_RUN_STEPS,
+    ORIGINAL_UPDATES_PER_STEP,
+    LearnerConfig,
+    get_preset,
+)
 
 N = 5
 DIM = 36
@@ -44,10 +49,10 @@ def states(n_rows: int, seed: int = 0) -> np.ndarray:
     ("use_case", "lr", "delta", "episodes", "beta"),
     [(1, 1e-7, 0.003, 50, 200), (2, 1e-6, 0.0015, 30, 120), (3, 1e-7, 0.003, 50, 200)],
 )
-def test_paper_preset_is_table_one(
+def test_paper_literal_preset_is_table_one(
     use_case: int, lr: float, delta: float, episodes: int, beta: int
 ) -> None:
-    c = get_preset("paper", use_case)
+    c = get_preset("paper-literal", use_case)
     assert (c.learning_rate, c.delta, c.n_episodes, c.beta) == (lr, delta, episodes, beta)
     assert (c.epsilon_start, c.epsilon_decay, c.epsilon_min) == (1.0, 3.3e-6, 0.01)
     assert (c.episode_steps, c.kappa) == (256, 128)
@@ -58,7 +63,7 @@ def test_paper_preset_is_table_one(
 
 @pytest.mark.parametrize("use_case", [1, 2, 3])
 def test_tuned_exploration_ends_within_budget(use_case: int) -> None:
-    paper, tuned = get_preset("paper", use_case), get_preset("tuned", use_case)
+    paper, tuned = get_preset("paper-literal", use_case), get_preset("tuned", use_case)
     rounds_to_min = (tuned.epsilon_start - tuned.epsilon_min) / tuned.epsilon_decay
     assert rounds_to_min <= 0.5 * tuned.n_training_rounds + 1e-9
     # Only the documented fields differ.
@@ -72,8 +77,60 @@ def test_tuned_exploration_ends_within_budget(use_case: int) -> None:
     }
 
 
+@pytest.mark.parametrize("use_case", [1, 2, 3])
+def test_paper_preset_compresses_the_original_schedule_into_the_budget(use_case: int) -> None:
+    literal, paper = get_preset("paper-literal", use_case), get_preset("paper", use_case)
+    # Table I's δ, κ, ε bounds, episode settings and the network stay.
+    for name in ("delta", "kappa", "epsilon_start", "epsilon_min", "episode_steps", "n_episodes",
+                 "beta", "train_steps", "test_steps", "hidden_widths"):
+        assert getattr(paper, name) == getattr(literal, name), name
+    # ε decays per step and reaches ε_min exactly at the end of training, as the original runs.
+    assert paper.epsilon_per_step
+    assert paper.epsilon_start - paper.train_steps * paper.epsilon_decay == pytest.approx(0.01)
+    # The original runs (30 x 50·β steps, 4 Adam updates each at Table I's rate) and ours can
+    # move each weight equally far.
+    assert ORIGINAL_RUN_STEPS[use_case] == 30 * literal.train_steps
+    ours = paper.n_training_rounds * paper.updates_per_round * paper.learning_rate
+    original = ORIGINAL_RUN_STEPS[use_case] * ORIGINAL_UPDATES_PER_STEP * literal.learning_rate
+    assert ours == pytest.approx(original)
+    assert (paper.replay_capacity, paper.replay_sampling, paper.batch_size) == (2500, "uniform", 32)
+    # A smaller budget keeps both properties.
+    small = get_preset("paper", use_case, train_steps=1280)
+    assert small.epsilon_start - 1280 * small.epsilon_decay == pytest.approx(0.01)
+    assert small.n_training_rounds * small.updates_per_round * small.learning_rate == pytest.approx(original)
+
+
+def test_epsilon_per_step_counts_stored_tuples() -> None:
+    config = dataclasses.replace(get_preset("paper", 1, train_steps=1280))
+    learner = SafeTailLearner(N, DIM, config, seed=2)
+    state = np.zeros(DIM, dtype=np.float32)
+    for _ in range(100):
+        learner.observe(state, 0, 0.0)
+    assert learner.n_training_rounds == 0
+    assert learner.epsilon == pytest.approx(1.0 - 100 * config.epsilon_decay)
+
+
+def test_uniform_replay_rounds_are_deterministic_and_move_the_weights() -> None:
+    config = get_preset("paper", 1, train_steps=512)
+
+    def train() -> list[np.ndarray]:
+        learner = SafeTailLearner(N, DIM, config, seed=9)
+        rng = np.random.default_rng(1)
+        before = [w.copy() for w in learner.model.get_weights()]
+        for _ in range(256):
+            state = rng.random(DIM).astype(np.float32)
+            learner.observe(state, int(rng.integers(learner.n_actions)), -float(rng.random()) * 0.01)
+        assert learner.n_training_rounds == 2 and learner.last_round_loss is not None
+        after = learner.model.get_weights()
+        assert any(not np.array_equal(a, b) for a, b in zip(before, after, strict=True))
+        return after
+
+    for first, second in zip(train(), train(), strict=True):
+        np.testing.assert_array_equal(first, second)
+
+
 def test_unknown_preset_and_use_case() -> None:
-    with pytest.raises(ValueError, match="unknown preset 'fast'; valid presets: paper, tuned"):
+    with pytest.raises(ValueError, match="unknown preset 'fast'; valid presets: paper, paper-literal, tuned"):
         get_preset("fast", 1)
     with pytest.raises(ValueError, match="unknown use case 4; valid use cases: 1, 2, 3"):
         get_preset("paper", 4)

@@ -14,7 +14,12 @@ from typing import Any
 import numpy as np
 
 from yafs_safetail.policy.actions import n_actions as count_actions
-from yafs_safetail.policy.network import NumpyForward, build_network, enable_determinism
+from yafs_safetail.policy.network import (
+    NumpyForward,
+    build_network,
+    enable_determinism,
+    make_round_updates,
+)
 from yafs_safetail.policy.presets import LearnerConfig
 from yafs_safetail.policy.reward import target_vector
 
@@ -161,6 +166,7 @@ class SafeTailLearner:
         self._n_stored = 0
         self._n_buffered = 0
         self._n_rounds = 0
+        self._round_updates: Any = None
         self.last_round_loss: float | None = None
 
     # -- state -------------------------------------------------------------------------------
@@ -176,9 +182,11 @@ class SafeTailLearner:
 
     @property
     def epsilon(self) -> float:
-        """Current ε: ε_start - rounds·ε_decay, floored at ε_min."""
+        """Current ε: ε_start - decays·ε_decay, floored at ε_min, where decays counts training
+        rounds, or stored tuples with ``config.epsilon_per_step``."""
         c = self.config
-        return max(c.epsilon_min, c.epsilon_start - self._n_rounds * c.epsilon_decay)
+        decays = self._n_stored if c.epsilon_per_step else self._n_rounds
+        return max(c.epsilon_min, c.epsilon_start - decays * c.epsilon_decay)
 
     @property
     def n_training_rounds(self) -> int:
@@ -251,13 +259,22 @@ class SafeTailLearner:
         # The ring buffer holds exactly the most recent n_rows tuples in slots 0..n_rows-1.
         states = self._states[:n_rows]
         targets = self._targets[:n_rows]
-        losses = []
-        for _ in range(c.epochs_per_round):
-            order = self._shuffle_rng.permutation(n_rows)
-            for start in range(0, n_rows, c.batch_size):
-                batch = order[start:start + c.batch_size]
-                losses.append(float(self._model.train_on_batch(states[batch], targets[batch])))
-        self.last_round_loss = float(np.mean(losses))
+        if c.replay_sampling == "uniform":
+            batches = np.stack([
+                self._shuffle_rng.choice(n_rows, size=c.batch_size, replace=False)
+                for _ in range(c.updates_per_round)
+            ])
+            if self._round_updates is None:
+                self._round_updates = make_round_updates(self._model)
+            self.last_round_loss = self._round_updates(states, targets, batches)
+        else:
+            losses = []
+            for _ in range(c.epochs_per_round):
+                order = self._shuffle_rng.permutation(n_rows)
+                for start in range(0, n_rows, c.batch_size):
+                    batch = order[start:start + c.batch_size]
+                    losses.append(float(self._model.train_on_batch(states[batch], targets[batch])))
+            self.last_round_loss = float(np.mean(losses))
         self._forward = NumpyForward.from_model(self._model)
         self._n_rounds += 1
 
@@ -346,12 +363,15 @@ class SafeTailLearner:
                 f"says {expected_in} -> {expected_out}"
             )
         learner._model = model
+        learner._round_updates = None
         learner._forward = NumpyForward.from_model(model)
         learner._n_rounds = n_rounds
-        # The buffer is not saved: drop the partial batch so rounds stay every κ tuples.
+        learner._n_stored = n_stored
+        if not math.isclose(learner.epsilon, saved_epsilon, abs_tol=1e-12):
+            raise PolicyFileError(f"{sidecar_path}: epsilon does not match the saved counts")
+        # The buffer is not saved: drop the partial batch so rounds stay every κ tuples (with
+        # ε decaying per step, ε then resumes from the last round's value).
         learner._n_stored = n_stored // config.kappa * config.kappa
         learner._explore_rng.bit_generator.state = explore_state
         learner._shuffle_rng.bit_generator.state = shuffle_state
-        if not math.isclose(learner.epsilon, saved_epsilon, abs_tol=1e-12):
-            raise PolicyFileError(f"{sidecar_path}: epsilon does not match the round count")
         return learner
