@@ -104,9 +104,13 @@ def test_oracle_is_a_per_request_lower_bound(requests):
     oracle = test[test["method"] == results.ORACLE].set_index("step")["latency_s"]
     assert (test[test["method"] == results.ORACLE]["n_selected"] == 5).all()
     for method, rows in test.groupby("method"):
-        latency = rows.set_index("step")["latency_s"]
+        indexed = rows.set_index("step")
+        latency = indexed["latency_s"]
         joined = pd.concat({"method": latency, "oracle": oracle}, axis=1, join="inner")
         assert len(joined) == len(oracle), method
+        # Where every chosen server refused, the on-device version answers; in the calibrated
+        # world it can beat Oracle's slowest admitted copies (yafs_safetail.edge.calibration).
+        joined = joined[indexed["fallback"].reindex(joined.index) == 0]
         worse = joined[joined["oracle"] > joined["method"]]
         assert worse.empty, f"Oracle slower than {method} at steps {list(worse.index[:5])}"
 

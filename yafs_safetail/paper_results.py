@@ -102,7 +102,9 @@ PAPER_CLAIMS: tuple[PaperClaim, ...] = (
                "SafeTail below the average target latency at median, p90, p95 and p99"),
     PaperClaim(1, "beats_x23_all",
                "SafeTail faster than Rand/MinLoad/MinProp with x = 2, 3 at every percentile"),
-    PaperClaim(1, "servers_1_to_3", "SafeTail uses 1 to 3 servers (test phase)"),
+    PaperClaim(1, "servers_1_to_3",
+               "SafeTail's access rate varies between 1 and 3 servers (Fig. (e): servers per "
+               "request averaged over each β test steps)"),
     PaperClaim(2, "median_below_target", "SafeTail median below the average target latency"),
     PaperClaim(2, "oracle_tail_above_target",
                "Even Oracle's p99 exceeds the average target latency"),
@@ -115,6 +117,20 @@ PAPER_CLAIMS: tuple[PaperClaim, ...] = (
     PaperClaim(3, "safetail_better_p95_p99",
                "SafeTail faster than every Rand/MinLoad/MinProp baseline at p95 and p99"),
 )
+
+
+#: The baselines whose ratios with SafeTail in use case 1 form the calibration subset: the
+#: twelve numbers ``experiments/calibrate.py`` fits the unpublished world parameters to. Every
+#: other stated number is held out (never used to choose or fit anything).
+CALIBRATION_REFERENCES: tuple[str, ...] = ("Rand-1", "MinLoad-1", "MinProp-1")
+
+
+def in_calibration_subset(ratio: PaperRatio) -> bool:
+    """Whether ``ratio`` is one of the twelve calibration numbers (use case 1, x = 1 baselines)."""
+    return ratio.use_case == 1 and ratio.method == "SafeTail" and ratio.reference in CALIBRATION_REFERENCES
+
+
+CALIBRATION_RATIOS: tuple[PaperRatio, ...] = tuple(r for r in PAPER_RATIOS if in_calibration_subset(r))
 
 
 def paper_speedup(use_case: int, method: str, reference: str, percentile: int) -> float | None:

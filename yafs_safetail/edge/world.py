@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from yafs_safetail.edge import published
+from yafs_safetail.edge import calibration, published
+from yafs_safetail.edge.calibration import LANDED, WorldSettings
 from yafs_safetail.edge.compute import ComputeModel
 from yafs_safetail.edge.latency import (
     CopyLatency,
@@ -68,8 +69,9 @@ class TraceInputs:
             WiFi), each sorted ascending.
         server_downlink_pools_bps: λ^d pools, same layout.
         rtt_pools_s: RTT pool (sorted) per distance condition.
-        load_levels: background users, shape (minutes, devices), integers already scaled to
-            0..max level.
+        load_users: active users per minute and load device, shape (minutes, devices), as in
+            the load trace (the world scales them into background users, see
+            :func:`yafs_safetail.edge.calibration.load_levels`).
         request_gamma: Γ of every compute-trace row (without the number of processes),
             shape (rows, g), possibly g = 0.
         request_input_bytes: Size(I) of every compute-trace row, shape (rows,).
@@ -83,7 +85,7 @@ class TraceInputs:
     server_uplink_pools_bps: tuple[np.ndarray, ...]
     server_downlink_pools_bps: tuple[np.ndarray, ...]
     rtt_pools_s: Mapping[int, np.ndarray]
-    load_levels: np.ndarray
+    load_users: np.ndarray
     request_gamma: np.ndarray
     request_input_bytes: np.ndarray
     predict_compute_s: Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -98,6 +100,10 @@ class TraceInputs:
     @property
     def max_processes(self) -> int:
         return int(self.compute_sigma_s.shape[0])
+
+    @property
+    def n_load_devices(self) -> int:
+        return int(self.load_users.shape[1])
 
 
 def _quantile_lookup(sorted_pool: np.ndarray, quantiles: np.ndarray) -> np.ndarray:
@@ -203,6 +209,8 @@ class EdgeWorld:
         median_compute_s: C(s_j) of Eq. 4, the median compute time at ν processes.
         target_s: τ per step (Eq. 4).
         fallback_latency_s: the on-device fallback latency (assumption iv).
+        nu: ν of Eq. 4 used for ``target_s``.
+        settings: the world settings it was drawn with.
     """
 
     seed: int
@@ -230,6 +238,8 @@ class EdgeWorld:
     median_compute_s: float
     target_s: np.ndarray
     fallback_latency_s: float
+    nu: int
+    settings: WorldSettings
 
     @property
     def n_steps(self) -> int:
@@ -420,6 +430,7 @@ def build_world(
     phase: str,
     episode_steps: int = DEFAULT_EPISODE_STEPS,
     max_load: int = DEFAULT_MAX_LOAD,
+    settings: WorldSettings = LANDED,
 ) -> EdgeWorld:
     """Draws a phase's world.
 
@@ -432,12 +443,17 @@ def build_world(
         phase: the phase name (independent streams per phase).
         episode_steps: α_s; the load trace restarts at a random row at every episode start.
         max_load: the server load limit.
+        settings: the readings and calibrated parameters (:mod:`yafs_safetail.edge.calibration`):
+            propagation per direction, load scaling and start rows, bandwidth sharing, the
+            fallback rule and ν.
 
-    The link BW and PR of the topology act on the trace pools (:func:`link_scales`). The
-    on-device fallback latency is the use case's, raised to the worst-case edge latency of
-    this topology if that is higher (assumption iv: the on-device version bounds the
-    service's latency tolerance), so a fallback is never faster than an edge reply and
-    Oracle stays a per-request lower bound.
+    The link BW and PR of the topology act on the trace pools (:func:`link_scales`). With the
+    landed fallback rule the on-device fallback latency is the use case's, raised to the
+    worst-case edge latency of this topology if that is higher, so a fallback is never faster
+    than an edge reply and Oracle stays a per-request lower bound. With a calibrated rule it is
+    a multiple of the use case's median one-process compute time (assumption iv: the on-device
+    version's run time); then a method whose chosen servers all refuse may beat Oracle on that
+    request, when Oracle's admitted copies are slower than the device.
 
     Raises:
         WorldError: inconsistent sizes or parameters.
@@ -449,22 +465,27 @@ def build_world(
             f"max_load: {max_load} needs compute times for k = 1..{max_load} processes but "
             f"{inputs.source} covers k = 1..{inputs.max_processes}"
         )
-    if use_case.nu > inputs.max_processes:
-        raise WorldError(f"use case {use_case.number}: ν = {use_case.nu} beyond the compute trace")
+    nu = use_case.nu if settings.nu is None else settings.nu
+    if nu > inputs.max_processes:
+        raise WorldError(f"use case {use_case.number}: ν = {nu} beyond the compute trace")
     missing = [c for c in scenario.server_conditions if c not in inputs.rtt_pools_s]
     if missing:
         raise WorldError(f"{scenario.topology.source}: conditions {missing} have no RTT pool")
-    n_devices = inputs.load_levels.shape[1]
+    n_devices = inputs.n_load_devices
     if max(scenario.server_load_devices) >= n_devices:
         raise WorldError(f"{scenario.topology.source}: load device beyond the trace's {n_devices}")
     scales = link_scales(scenario)
-    worst_s = worst_case_copy_latency_s(
-        inputs, use_case, max_load,
-        bandwidth_scale=min(float(scales.server_bandwidth.min()), scales.user_bandwidth),
-        extra_propagation_s=float(scales.server_extra_propagation_s.max()),
-    )
-    # Rounded up to 0.1 s so the recorded value reads cleanly in results.
-    fallback_latency_s = max(float(use_case.fallback_latency_s), math.ceil(worst_s * 10) / 10)
+    if settings.fallback_compute_multiple is None:
+        worst_s = worst_case_copy_latency_s(
+            inputs, use_case, max_load,
+            bandwidth_scale=min(float(scales.server_bandwidth.min()), scales.user_bandwidth),
+            extra_propagation_s=float(scales.server_extra_propagation_s.max()),
+        )
+        # Rounded up to 0.1 s so the recorded value reads cleanly in results.
+        fallback_latency_s = max(float(use_case.fallback_latency_s), math.ceil(worst_s * 10) / 10)
+    else:
+        fallback_latency_s = settings.fallback_compute_multiple * float(inputs.median_compute_by_k_s[0])
+    load_levels = calibration.load_levels(inputs.load_users, settings.load_peak_users, max_load)
 
     n = scenario.n_servers
     request_seq, user_bw_seq, episode_seq, servers_seq = phase_seed_sequence(seed, phase).spawn(4)
@@ -495,13 +516,26 @@ def build_world(
     user_downlink_bps = scales.user_bandwidth * _quantile_lookup(
         inputs.server_downlink_pools_bps[0], user_quantiles[:, 1])
 
-    minutes = inputs.load_levels.shape[0]
+    minutes = load_levels.shape[0]
     n_episodes = -(-n_steps // episode_steps)
     starts = episode_rng.integers(0, minutes, size=n_episodes)
     step_index = np.arange(n_steps)
     load_row = (starts[step_index // episode_steps] + step_index % episode_steps) % minutes
     devices = np.asarray(scenario.server_load_devices)
-    background = inputs.load_levels[load_row][:, devices].astype(np.int64)
+    if settings.load_start == "per_server":
+        # Each server's own start minute per episode, from its own stream (so removing a
+        # server leaves the others' load unchanged); the shared draw above still numbers the
+        # episodes' rows for load_row, which then records the first server's minute.
+        server_starts = np.stack([
+            np.random.default_rng(stream).integers(0, minutes, size=n_episodes)
+            for stream in episode_seq.spawn(n)
+        ], axis=1)
+        rows = (server_starts[step_index // episode_steps]
+                + (step_index % episode_steps)[:, None]) % minutes
+        background = load_levels[rows, devices[None, :]].astype(np.int64)
+        load_row = rows[:, 0]
+    else:
+        background = load_levels[load_row][:, devices].astype(np.int64)
 
     levels = inputs.n_contention_levels
     uplink = np.empty((n_steps, n, levels))
@@ -509,8 +543,11 @@ def build_world(
     for level in range(levels):
         uplink[:, :, level] = _quantile_lookup(inputs.server_uplink_pools_bps[level], bw_quantiles[..., 0])
         downlink[:, :, level] = _quantile_lookup(inputs.server_downlink_pools_bps[level], bw_quantiles[..., 1])
-    uplink *= scales.server_bandwidth[None, :, None]
-    downlink *= scales.server_bandwidth[None, :, None]
+    # Sharing among the server's other active users beyond what the WiFi measurement at that
+    # contention level already contains (exponent 0: the pools as measured).
+    share = (1.0 + np.arange(levels)) ** -settings.bandwidth_share_exponent
+    uplink *= scales.server_bandwidth[None, :, None] * share[None, None, :]
+    downlink *= scales.server_bandwidth[None, :, None] * share[None, None, :]
 
     input_transfer = transfer_s(
         input_bytes[:, None, None],
@@ -524,7 +561,8 @@ def build_world(
     rtt_s = np.empty((n_steps, n))
     median_propagation_s = np.empty(n)
     for server, condition in enumerate(scenario.server_conditions):
-        pool = inputs.rtt_pools_s[condition]
+        # ρ_i per direction: a fraction of a measured ping round trip, plus wired propagation.
+        pool = inputs.rtt_pools_s[condition] * settings.propagation_rtt_fraction
         extra_s = scales.server_extra_propagation_s[server]
         rtt_s[:, server] = _quantile_lookup(pool, rtt_quantiles[:, server]) + extra_s
         median_propagation_s[server] = float(np.median(pool)) + extra_s
@@ -537,7 +575,7 @@ def build_world(
     compute = predictions[:, None, :] + noise[:, :, None] * sigma[None, None, :]
     compute = np.maximum(compute, MIN_COMPUTE_S)
 
-    median_compute_s = float(inputs.median_compute_by_k_s[use_case.nu - 1])
+    median_compute_s = float(inputs.median_compute_by_k_s[nu - 1])
     target = target_latency_s(
         input_bytes,
         est_output_bytes,
@@ -572,6 +610,8 @@ def build_world(
         median_compute_s=median_compute_s,
         target_s=np.asarray(target, dtype=float),
         fallback_latency_s=fallback_latency_s,
+        nu=nu,
+        settings=settings,
     )
 
 
@@ -580,7 +620,6 @@ def trace_inputs(
     use_case: UseCase,
     predict_compute_s: Callable[[np.ndarray, np.ndarray], np.ndarray],
     compute_sigma_s: np.ndarray | None = None,
-    max_load: int = DEFAULT_MAX_LOAD,
 ) -> TraceInputs:
     """Assembles the world's inputs from the loaded traces of one use case.
 
@@ -589,7 +628,6 @@ def trace_inputs(
         use_case: the use case.
         predict_compute_s: the compute model's batch prediction ``f(gamma_rows, k_rows)``.
         compute_sigma_s: σ_k for k = 1..5 (default: the published σ_k of the use case).
-        max_load: the top background level the load trace is scaled into.
     """
     compute = traces.compute[use_case.number]
     if compute.gamma_columns != use_case.gamma_columns:
@@ -614,7 +652,7 @@ def trace_inputs(
             for level in range(traces.bandwidth.max_contention_level + 1)
         ),
         rtt_pools_s={c: np.sort(traces.propagation.samples_s(c)) for c in traces.propagation.conditions},
-        load_levels=traces.load.levels(max_load),
+        load_users=traces.load.users,
         request_gamma=compute.gamma_matrix(),
         request_input_bytes=compute.frame[use_case.input_bytes_column].to_numpy(dtype=float),
         predict_compute_s=predict_compute_s,

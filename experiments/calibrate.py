@@ -1,0 +1,85 @@
+"""Fit the world parameters the paper never published to its use-case-1 x = 1 baseline ratios.
+
+    python experiments/calibrate.py                       # 3 calibration seeds, full budget (~1 h)
+    python experiments/calibrate.py --apply               # ... and install the result
+    python experiments/calibrate.py --steps-scale 0.2 --max-evaluations 8 --out /tmp/cal   # a quick look
+
+Writes OUT/evaluations.csv (every candidate: parameters, objective, the twelve ratios) and
+OUT/calibration.json (the best parameters with their provenance). With --apply the result also
+replaces yafs_safetail/edge/calibration.json, which the `paper` and `tuned` presets' world reads.
+Only the calibration subset (use case 1: SafeTail against Rand-1, MinLoad-1, MinProp-1 at the
+median, p90, p95, p99) is used; every other published number stays held out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from yafs_safetail.calibrate import DEFAULT_SEEDS, CalibrationConfig, CalibrationRunError, calibrate
+from yafs_safetail.cli import run_cli
+from yafs_safetail.policy.presets import PRESET_NAMES
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise CalibrationRunError(message)
+
+
+def _seeds(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not values or min(values) < 0:
+        raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
+    return values
+
+
+def _positive(kind: type) -> object:
+    def parse(text: str) -> object:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+        if not value > 0 or value != value or value == float("inf"):
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+        return value
+    return parse
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _Parser(prog="calibrate.py", description=__doc__,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--preset", default="paper", choices=PRESET_NAMES,
+                        help="learner preset whose SafeTail enters the ratios (default paper)")
+    parser.add_argument("--seeds", type=_seeds, default=DEFAULT_SEEDS,
+                        help="calibration seeds, disjoint from report seeds (default 1000,1001,1002)")
+    parser.add_argument("--steps-scale", type=_positive(float), default=1.0,
+                        help="fraction of the step budget per run (default 1)")
+    parser.add_argument("--max-evaluations", type=_positive(int), default=32,
+                        help="candidates evaluated at most (default 32)")
+    parser.add_argument("--workers", type=_positive(int), default=2, help="parallel runs (default 2)")
+    parser.add_argument("--out", type=Path, default=Path("results/calibration"),
+                        help="output folder (default results/calibration)")
+    parser.add_argument("--apply", action="store_true",
+                        help="install the result as yafs_safetail/edge/calibration.json")
+    args = parser.parse_args(argv)
+    command = shlex.join(["python", "experiments/calibrate.py", *(sys.argv[1:] if argv is None else argv)])
+    document = calibrate(CalibrationConfig(
+        preset=args.preset, seeds=args.seeds, steps_scale=args.steps_scale,
+        max_evaluations=args.max_evaluations, workers=args.workers, out_dir=args.out,
+        apply=args.apply, command=command,
+    ), log=lambda line: print(line, file=sys.stderr, flush=True))
+    print(f"best: {document['parameters']} ({document['readings']['load_start']} load start), "
+          f"objective {document['provenance']['objective_value']}, within ±20% "
+          f"{document['provenance']['within_20_percent']:.0%}")
+    print(f"written: {args.out / 'calibration.json'}" + (" (installed)" if args.apply else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run_cli(main))
