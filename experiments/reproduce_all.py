@@ -1,15 +1,18 @@
 """Run every use case over several seeds and write one report against the paper's numbers.
 
-    python experiments/reproduce_all.py                          # UC 1-3, seeds 0,1,2, paper preset
-    python experiments/reproduce_all.py --preset paper,tuned --seeds 0,1,2,3,4
+    python experiments/reproduce_all.py                          # UC 1-3, seeds 0-4, paper preset
+    python experiments/reproduce_all.py --preset paper,paper-literal,tuned --seeds 0,1,2,3,4,5
     python experiments/reproduce_all.py --steps-scale 0.1 --out results/quick
 
 For every (use case, preset, seed) it runs exactly what ``run_usecase.py`` runs, into
-``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` gives, per use case and preset: the
-latency table (mean over seeds and a 95% t-interval), our ratios beside the paper's stated
-ones with a plain note where they differ, what the learner did (training rounds, final ε,
-servers used, target met, fallbacks) as the first place to look for why, and the figures of
-the first seed.
+``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` opens with the fidelity scorecard of
+each preset (every ratio and claim the paper publishes against ours over the seeds, calibration
+subset and held-out numbers apart; also in ``OUT/fidelity.csv`` and the figure
+``OUT/fidelity-<preset>.png``) and gives, per use case and preset: the latency table (mean over
+seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones with a plain
+note where they differ, what the learner did (training rounds, final ε, servers used, target
+met, fallbacks) as the first place to look for why, and the figures of the first seed.
+Seeds must be distinct; the scorecard asks for at least five.
 """
 
 from __future__ import annotations
@@ -23,8 +26,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from yafs_safetail import results
+from yafs_safetail import fidelity, results
 from yafs_safetail.cli import run_cli
+from yafs_safetail.edge.calibration import CalibrationError, read_calibration
 from yafs_safetail.experiment import ExperimentConfig, ExperimentError, run_experiment
 from yafs_safetail.figures import FIGURES_DIR
 from yafs_safetail.policy.presets import PRESET_NAMES
@@ -52,6 +56,10 @@ def _int_list(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
     if not values or min(values) < 0:
         raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"{repeated[0]} is given twice in {text!r}; a repeated seed would count twice")
     return values
 
 
@@ -61,6 +69,19 @@ def _presets(text: str) -> tuple[str, ...]:
     if not names or unknown:
         raise argparse.ArgumentTypeError(f"unknown preset(s) {unknown}; valid: {', '.join(PRESET_NAMES)}")
     return names
+
+
+def _calibration_seed_note(seeds: Sequence[int]) -> str:
+    """A warning when a report seed is one the calibration was fitted on."""
+    try:
+        used = set(read_calibration()["provenance"].get("seeds", []))
+    except CalibrationError:
+        return ""
+    shared = sorted(used & set(seeds))
+    if not shared:
+        return " None of these seeds was used by the calibration."
+    return (f" Seeds {shared} were used by the calibration (yafs_safetail/edge/calibration.json): "
+            "on them the calibration-subset numbers are not independent of the fit.")
 
 
 def _learner_diagnostics(folders: Sequence[Path]) -> list[str]:
@@ -100,7 +121,7 @@ def _why_lines(folders: Sequence[Path]) -> list[str]:
     safetail = mean.loc[results.SAFETAIL]
     lines.append(
         f"- SafeTail sends {safetail['mean_n_selected']:.2f} copies per request on average "
-        f"(the paper reports 1 to 3) and meets the target on {safetail['target_met_rate']:.0%} "
+        f"and meets the target on {safetail['target_met_rate']:.0%} "
         f"of requests; Oracle meets it on {mean.loc[results.ORACLE, 'target_met_rate']:.0%}."
     )
     fallback_s = runs[0].extra.get("fallback_latency_s")
@@ -167,7 +188,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _Parser(prog="reproduce_all.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--uc", type=_int_list, default=(1, 2, 3), help="use cases (default 1,2,3)")
-    parser.add_argument("--seeds", type=_int_list, default=(0, 1, 2), help="seeds (default 0,1,2)")
+    parser.add_argument("--seeds", type=_int_list, default=(0, 1, 2, 3, 4),
+                        help="distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)")
     parser.add_argument("--preset", type=_presets, default=("paper",),
                         help="preset(s), comma-separated (default paper)")
     parser.add_argument("--steps-scale", type=float, default=1.0,
@@ -184,6 +206,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     sections: list[str] = []
     speedups = []
+    summaries: dict[str, dict[int, list[pd.DataFrame]]] = {p: {} for p in args.preset}
     for use_case in args.uc:
         for preset in args.preset:
             folders = []
@@ -197,6 +220,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 ))
                 folders.append(folder)
             sections += _section(use_case, preset, folders, args.out)
+            summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
             table = results.aggregate_speedups(folders)
             table.insert(1, "preset", preset)
             speedups.append(table)
@@ -216,7 +240,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         "learner trained, how many servers it ended up using and how often it met the target.",
         "",
     ]
-    report = "\n".join(header + sections)
+    scorecard_lines, cards = [], []
+    for preset in args.preset:
+        card = fidelity.scorecard(summaries[preset])
+        card.insert(0, "preset", preset)
+        cards.append(card)
+        fidelity.draw_scorecard(card, args.out / f"{fidelity.FIDELITY_FIGURE}-{preset}")
+        few = (f" Only {len(args.seeds)} seed(s): the scorecard is meant for five or more."
+               if len(args.seeds) < 5 else "")
+        few += _calibration_seed_note(args.seeds)
+        scorecard_lines += [
+            f"## Fidelity scorecard — preset `{preset}`", "",
+            f"Seeds {', '.join(map(str, args.seeds))}; use cases {', '.join(map(str, args.uc))}.{few} "
+            f"Figure: ![paper vs ours](fidelity-{preset}.png)", "",
+            fidelity.scorecard_markdown(card).rstrip("\n"), "",
+        ]
+    results.write_text_atomic(args.out / fidelity.FIDELITY_FILE,
+                              pd.concat(cards, ignore_index=True).to_csv(index=False))
+    report = "\n".join(header + scorecard_lines + sections)
     results.write_text_atomic(args.out / "REPORT.md", report)
     all_speedups = pd.concat(speedups, ignore_index=True)
     results.write_text_atomic(args.out / "speedups.csv", all_speedups.to_csv(index=False))

@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from yafs_safetail import paper_results, results
 from yafs_safetail.results import (
@@ -241,7 +243,8 @@ def _toy_summary(latencies: dict[str, tuple[float, float, float, float]]) -> pd.
     for method, (p50, p90, p95, p99) in latencies.items():
         rows.append({"method": method, "p50_s": p50, "p90_s": p90, "p95_s": p95, "p99_s": p99,
                      "mean_target_s": 0.6, "mean_n_selected": 2.0, "median_n_selected": 2.0,
-                     "min_n_selected": 1, "max_n_selected": 3})
+                     "min_n_selected": 1, "max_n_selected": 3,
+                     "min_window_n_selected": 1.4, "max_window_n_selected": 2.6})
     return pd.DataFrame(rows)
 
 
@@ -289,9 +292,16 @@ def test_claims_are_checked():
     assert claims["servers_1_to_3"] is True
     bad = good.copy()
     bad.loc[0, "p99_s"] = 0.9
+    bad.loc[0, "max_window_n_selected"] = 3.2
     claims = results.check_claims(bad, 1).set_index("key")["holds"]
     assert claims["below_target_all"] is False
     assert claims["beats_x23_all"] is False
+    assert claims["servers_1_to_3"] is False
+    # A summary without β windows (written before them) falls back to single requests.
+    no_windows = good.copy()
+    no_windows[["min_window_n_selected", "max_window_n_selected"]] = math.nan
+    no_windows.loc[0, "max_n_selected"] = 5
+    assert results.check_claims(no_windows, 1).set_index("key")["holds"]["servers_1_to_3"] is False
     uc3 = results.check_claims(_toy_summary({"SafeTail": (0.3, 0.4, 0.5, 0.6)}), 3)
     assert uc3.set_index("key")["holds"]["baseline_better_p50_p90"] is None
 
@@ -354,13 +364,25 @@ def test_beta_averages_follow_step_order_not_file_order():
 
 # ---------------------------------------------------------------------------- across seeds
 
-def test_student_t_quantile_matches_tables():
-    for dof, table in [(1, 12.7062), (2, 4.3027), (4, 2.7764), (9, 2.2622), (29, 2.0452)]:
-        assert results.student_t_quantile(0.975, dof) == pytest.approx(table, abs=1e-4)
-    mean, low, high = results.mean_and_interval([1.0, 2.0, 3.0])
-    assert mean == 2.0
-    assert high - mean == pytest.approx(4.3027 * 1.0 / math.sqrt(3), abs=1e-3)
-    assert math.isnan(results.mean_and_interval([1.0])[1])
+def test_geometric_interval_is_a_log_scale_t_interval():
+    centre, low, high = results.geometric_interval([1.0, 2.0, 4.0])
+    assert centre == pytest.approx(2.0)
+    # log values ln(1), ln(2), ln(4): sd = ln 2, t(0.975, 2) = 4.3027 (tables).
+    assert math.log(high / centre) == pytest.approx(4.3027 * math.log(2) / math.sqrt(3), abs=1e-3)
+    assert low == pytest.approx(centre * centre / high)
+    assert math.isnan(results.geometric_interval([1.0])[1])
+    # Three seeds far apart: a t-interval of the plain mean would go below 0, this one cannot.
+    _, low, _ = results.geometric_interval([0.1, 3.0, 9.0])
+    assert low > 0
+
+
+@given(st.lists(st.floats(0.0, 1.0, allow_nan=False), min_size=2, max_size=8))
+@settings(max_examples=40, deadline=None)
+def test_bootstrap_interval_stays_in_the_range_of_the_values(values):
+    mean, low, high = results.bootstrap_interval(values)
+    assert min(values) - 1e-12 <= low <= mean + 1e-12
+    assert mean - 1e-12 <= high <= max(values) + 1e-12
+    assert results.bootstrap_interval(values) == (mean, low, high)  # seeded
 
 
 def test_aggregate_across_seeds(tmp_path):
@@ -380,7 +402,7 @@ def test_aggregate_across_seeds(tmp_path):
     oracle50 = speedups[(speedups["method"] == "Oracle") & (speedups["percentile"] == 50)].iloc[0]
     per_seed = [results.speedup(results.read_summary_csv(f), "Oracle", "SafeTail", 50)
                 for f in folders]
-    assert oracle50["mean"] == pytest.approx(np.mean(per_seed))
+    assert oracle50["mean"] == pytest.approx(np.exp(np.mean(np.log(per_seed))))
     assert oracle50["paper"] == pytest.approx(1.08)
     assert oracle50["note"]
     text = results.comparison_markdown(speedups, only_stated=True)

@@ -212,7 +212,7 @@ def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]
     Returns:
         Panel letter ("a".."g") to its matplotlib Figure (on an Agg canvas).
     """
-    summary = results.summarize(requests, preset=run.preset)
+    summary = results.summarize(requests, preset=run.preset, beta=run.beta)
     boundary = results.train_test_boundary(requests, run.beta)
     with matplotlib.rc_context(_STYLE):
         built = {"a": _latency_comparison(requests, summary, run)}

@@ -89,7 +89,12 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "fallback_rate",
     "mean_refused",
     "mean_abs_reward",
+    "min_window_n_selected",
+    "max_window_n_selected",
 )
+#: Summary columns added after the first release: a summary.csv written before them reads with
+#: NaN there.
+OPTIONAL_SUMMARY_COLUMNS: tuple[str, ...] = ("min_window_n_selected", "max_window_n_selected")
 
 # Floats are written as Python's shortest round-trip repr: deterministic (identical data gives
 # identical bytes) and lossless, so a summary recomputed from requests.csv equals the one
@@ -408,12 +413,20 @@ def _nanmean(values: np.ndarray) -> float:
     return float(finite.mean()) if finite.size else math.nan
 
 
-def summarize(requests: pd.DataFrame, preset: str = "") -> pd.DataFrame:
+def _window_means(values: np.ndarray, window: int) -> np.ndarray:
+    """Means of consecutive windows of ``window`` values (a shorter last window included)."""
+    return np.array([values[i:i + window].mean() for i in range(0, len(values), window)])
+
+
+def summarize(requests: pd.DataFrame, preset: str = "", beta: int | None = None) -> pd.DataFrame:
     """Per-method statistics of the test phase.
 
     Args:
         requests: a requests table (see ``REQUESTS_COLUMNS``).
         preset: written into the ``preset`` column.
+        beta: β; the servers per request averaged over consecutive windows of β test steps (the
+            paper's Fig. (e) points) give ``min_window_n_selected``/``max_window_n_selected``
+            (NaN when None).
 
     Returns:
         One row per method with a test row, in report order, columns ``SUMMARY_COLUMNS``.
@@ -429,6 +442,11 @@ def summarize(requests: pd.DataFrame, preset: str = "") -> pd.DataFrame:
         latency = part["latency_s"].to_numpy(dtype=float)
         n_selected = part["n_selected"].to_numpy(dtype=float)
         p50, p90, p95, p99 = np.percentile(latency, PERCENTILES)
+        if beta:
+            in_order = part.sort_values("step", kind="stable")["n_selected"].to_numpy(dtype=float)
+            windows = _window_means(in_order, beta)
+        else:
+            windows = np.array([math.nan])
         rows.append({
             "method": method,
             "preset": preset,
@@ -449,6 +467,8 @@ def summarize(requests: pd.DataFrame, preset: str = "") -> pd.DataFrame:
             "fallback_rate": part["fallback"].to_numpy(dtype=float).mean(),
             "mean_refused": part["refused"].to_numpy(dtype=float).mean(),
             "mean_abs_reward": _nanmean(np.abs(part["reward"].to_numpy(dtype=float))),
+            "min_window_n_selected": float(windows.min()),
+            "max_window_n_selected": float(windows.max()),
         })
     frame = pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
     return frame.astype({"n_requests": "int64", "min_n_selected": "int64",
@@ -467,6 +487,9 @@ def read_summary_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError,
             ValueError) as error:
         raise ResultsFileError(f"{file}: not a readable CSV file: {_one_line(error)}") from None
+    for column in OPTIONAL_SUMMARY_COLUMNS:
+        if column not in frame.columns:
+            frame[column] = math.nan
     missing = [c for c in SUMMARY_COLUMNS if c not in frame.columns]
     if missing:
         raise ResultsFileError(f"{file}: missing column(s) {', '.join(missing)}")
@@ -554,7 +577,10 @@ def _claim_holds(key: str, summary: pd.DataFrame) -> bool | None:
     if key == "median_below_target":
         return float(safetail["p50_s"]) < target
     if key == "servers_1_to_3":
-        return int(safetail["min_n_selected"]) >= 1 and int(safetail["max_n_selected"]) <= 3
+        low, high = float(safetail["min_window_n_selected"]), float(safetail["max_window_n_selected"])
+        if math.isnan(low):  # a summary without β windows: every request on its own
+            low, high = float(safetail["min_n_selected"]), float(safetail["max_n_selected"])
+        return low >= 1 and high <= 3
     if key == "mean_servers_2_to_3":
         return 2.0 <= float(safetail["mean_n_selected"]) <= 3.0
     if key == "mostly_1_to_2_servers":
@@ -653,6 +679,10 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     else:
         title = "# SafeTail results (no run.json: use case, preset and seed unknown)"
     lines = [title, ""]
+    if use_case is not None and SAFETAIL in set(summary["method"]):
+        from yafs_safetail.fidelity import run_line  # fidelity reads this module's tables
+
+        lines += [run_line(summary, use_case), ""]
     n_test = ", ".join(f"{m} {n}" for m, n in zip(summary["method"], summary["n_requests"],
                                                    strict=True))
     lines += [
@@ -734,7 +764,7 @@ def write_summary(
         requests = read_requests_csv(folder)
     if run is None and (folder / RUN_FILE).is_file():
         run = read_run_json(folder)
-    summary = summarize(requests, preset=run.preset if run else "")
+    summary = summarize(requests, preset=run.preset if run else "", beta=run.beta if run else None)
     write_text_atomic(folder / SUMMARY_CSV_FILE, _csv_text(summary))
     write_text_atomic(folder / SUMMARY_MD_FILE, summary_markdown(summary, run))
     return summary
@@ -842,61 +872,59 @@ def train_test_boundary(requests: pd.DataFrame, beta: int, method: str = SAFETAI
 # Across seeds
 
 
-def student_t_quantile(probability: float, dof: int) -> float:
-    """Quantile of Student's t distribution (no SciPy needed).
-
-    Integrates the density with Simpson's rule from 0 and bisects on the upper limit; accurate
-    to about 1e-7 for the 0.9..0.999 quantiles used here.
-
-    Args:
-        probability: in (0.5, 1).
-        dof: degrees of freedom, >= 1.
-    """
-    if not 0.5 < probability < 1.0 or dof < 1:
-        raise ValueError(f"need 0.5 < probability < 1 and dof >= 1, got {probability}, {dof}")
-    log_norm = (math.lgamma((dof + 1) / 2) - math.lgamma(dof / 2)
-                - 0.5 * math.log(dof * math.pi))
-
-    def upper_mass(limit: float) -> float:
-        grid = np.linspace(0.0, limit, 4001)
-        density = np.exp(log_norm - (dof + 1) / 2 * np.log1p(grid * grid / dof))
-        step = grid[1] - grid[0]
-        simpson = density[0] + density[-1] + 4 * density[1:-1:2].sum() + 2 * density[2:-1:2].sum()
-        return 0.5 + simpson * step / 3
-
-    low, high = 0.0, 1.0
-    while upper_mass(high) < probability:
-        low, high = high, high * 2
-    for _ in range(60):
-        mid = 0.5 * (low + high)
-        if upper_mass(mid) < probability:
-            low = mid
-        else:
-            high = mid
-    return 0.5 * (low + high)
-
-
-def mean_and_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
-    """Mean and two-sided t-interval over seeds: ``mean ± t_{(1+level)/2, n-1} · s / √n``.
+def geometric_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """Geometric mean of positive values (e.g. ratios over seeds) and a Student-t interval on the
+    log scale, which never leaves (0, ∞).
 
     Returns:
-        ``(mean, low, high)``; the interval is NaN with fewer than two finite values.
+        ``(geometric mean, low, high)``; NaN interval with fewer than two values; all NaN when
+        no value is finite and positive.
     """
+    from scipy import stats
+
+    data = np.asarray([v for v in values if math.isfinite(v) and v > 0], dtype=float)
+    if data.size == 0:
+        return math.nan, math.nan, math.nan
+    logs = np.log(data)
+    centre = float(logs.mean())
+    if data.size < 2:
+        return math.exp(centre), math.nan, math.nan
+    half = float(stats.t.ppf((1 + level) / 2, data.size - 1)) * float(logs.std(ddof=1))
+    half /= math.sqrt(data.size)
+    return math.exp(centre), math.exp(centre - half), math.exp(centre + half)
+
+
+#: Resamples of :func:`bootstrap_interval` (seeded: the same values give the same interval).
+BOOTSTRAP_RESAMPLES = 10_000
+
+
+def bootstrap_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """Mean over seeds and a percentile-bootstrap interval of it (SciPy), which never leaves the
+    range of the values, so a latency or a rate never gets an impossible bound.
+
+    Returns:
+        ``(mean, low, high)``; NaN interval with fewer than two values or when they are all
+        equal (the interval is then the value itself).
+    """
+    from scipy import stats
+
     data = np.asarray([v for v in values if not math.isnan(v)], dtype=float)
     if data.size == 0:
         return math.nan, math.nan, math.nan
     mean = float(data.mean())
     if data.size < 2:
         return mean, math.nan, math.nan
-    half = student_t_quantile((1 + level) / 2, data.size - 1) * float(data.std(ddof=1))
-    half /= math.sqrt(data.size)
-    return mean, mean - half, mean + half
+    if np.all(data == data[0]):
+        return mean, mean, mean
+    result = stats.bootstrap((data,), np.mean, confidence_level=level, method="percentile",
+                             n_resamples=BOOTSTRAP_RESAMPLES, rng=np.random.default_rng(0))
+    return mean, float(result.confidence_interval.low), float(result.confidence_interval.high)
 
 
 def _summary_of_run(folder: Path) -> pd.DataFrame:
     if (folder / SUMMARY_CSV_FILE).is_file():
         return read_summary_csv(folder)
-    return summarize(read_requests_csv(folder))
+    return summarize(read_requests_csv(folder), beta=read_run_json(folder).beta)
 
 
 def _load_runs(directories: Sequence[str | os.PathLike[str]]) -> list[tuple[RunMetadata, pd.DataFrame]]:
@@ -923,7 +951,7 @@ AGGREGATE_METRICS: tuple[str, ...] = (
 
 
 def aggregate_summaries(directories: Sequence[str | os.PathLike[str]]) -> pd.DataFrame:
-    """Per method and metric, the mean over seeds and a 95% t-interval.
+    """Per method and metric, the mean over seeds and a 95% percentile-bootstrap interval.
 
     Args:
         directories: run folders of one use case (one per seed), each with ``run.json`` and
@@ -946,7 +974,7 @@ def aggregate_summaries(directories: Sequence[str | os.PathLike[str]]) -> pd.Dat
                 part = summary[summary["method"] == method]
                 if not part.empty:
                     values.append(float(part[metric].iloc[0]))
-            mean, low, high = mean_and_interval(values)
+            mean, low, high = bootstrap_interval(values)
             rows.append({"method": method, "metric": metric, "mean": mean, "ci_low": low,
                          "ci_high": high, "n_seeds": len(values)})
     return pd.DataFrame(rows, columns=["method", "metric", "mean", "ci_low", "ci_high", "n_seeds"])
@@ -976,7 +1004,7 @@ def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
                          f"{part.loc[metric, 'ci_high']:.{digits}f}]")
             row.append(cell)
         rows.append(row)
-    lines = ["Test phase; mean over seeds [95% t-interval over seeds].", "",
+    lines = ["Test phase; mean over seeds [95% bootstrap interval over seeds].", "",
              *_table(header, rows)]
     return "\n".join(lines) + "\n"
 
@@ -1013,9 +1041,10 @@ AGGREGATE_SPEEDUP_COLUMNS: tuple[str, ...] = (
 
 
 def aggregate_speedups(directories: Sequence[str | os.PathLike[str]]) -> pd.DataFrame:
-    """The paper's ratios (see :func:`speedup_table`) per seed, then mean and 95% t-interval.
+    """The paper's ratios (see :func:`speedup_table`) per seed, then their geometric mean and a
+    95% t-interval on the log scale (:func:`geometric_interval`).
 
-    The ratio is computed within each seed first and then averaged, so the interval reflects
+    The ratio is computed within each seed first and then combined, so the interval reflects
     the seed-to-seed spread of the ratio itself. ``note`` compares with the paper: inside our
     interval ("consistent"; a wide interval makes this weak, so read it with the interval);
     with one seed, within 5% ("close"); otherwise "differs in size" when both sit on the same
@@ -1040,7 +1069,7 @@ def aggregate_speedups(directories: Sequence[str | os.PathLike[str]]) -> pd.Data
                           & (table["percentile"] == entry.percentile)]
             if not match.empty:
                 values.append(float(match["ours"].iloc[0]))
-        mean, low, high = mean_and_interval(values)
+        mean, low, high = geometric_interval(values)
         rows.append({
             "use_case": use_case, "method": entry.method, "reference": entry.reference,
             "percentile": entry.percentile, "mean": mean, "ci_low": low, "ci_high": high,
@@ -1074,8 +1103,8 @@ def comparison_markdown(aggregated: pd.DataFrame, only_stated: bool = False) -> 
             _fmt(entry.paper, 2), entry.note,
         ])
     lines = [
-        "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = mean over "
-        "seeds [95% t-interval over seeds]; \"paper\" = the paper's stated number in the same "
+        "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
+        "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
         "direction (facts.md).",
         "",
         *_table(["use case", "comparison", "percentile", "ours", "seeds", "paper", "differs?"],

@@ -1,0 +1,239 @@
+"""The fidelity scorecard: every number and claim the paper publishes, against ours.
+
+For each of the paper's 23 stated ratios (``paper_results.PAPER_RATIOS``) and 9 qualitative
+claims (``paper_results.PAPER_CLAIMS``), across the seeds of one preset: the paper's value,
+ours (a ratio: the geometric mean over seeds with a 95% t-interval on the log scale, so it never
+leaves (0, ∞); a claim: the share of seeds in which it holds), the relative error, whether it
+is within ±20%, and whether the number belongs to the calibration subset (the twelve numbers
+``experiments/calibrate.py`` fits to) or is held out. SafeTail's mean access rate per use case
+(the goal: at most 0.5) is reported beside them.
+
+Reads summaries only (``summary.csv`` of each run folder); never the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from yafs_safetail import results
+from yafs_safetail.paper_results import (
+    PAPER_CLAIMS,
+    PAPER_RATIOS,
+    PERCENTILE_NAMES,
+    in_calibration_subset,
+)
+
+#: A ratio is reproduced when ours is within this relative distance of the paper's.
+TOLERANCE = 0.20
+#: The access-rate goal of the default preset (SafeTail's mean access rate at most this).
+ACCESS_RATE_GOAL = 0.5
+FIDELITY_FILE = "fidelity.csv"
+FIDELITY_FIGURE = "fidelity"
+
+FIDELITY_COLUMNS: tuple[str, ...] = (
+    "kind", "use_case", "key", "statement", "paper", "ours", "ci_low", "ci_high", "n_seeds",
+    "relative_error", "within_tolerance", "subset",
+)
+
+
+def _ratio_key(method: str, reference: str, percentile: int) -> str:
+    return f"{method} over {reference} {PERCENTILE_NAMES[percentile]}"
+
+
+def scorecard(summaries: Mapping[int, Sequence[pd.DataFrame]]) -> pd.DataFrame:
+    """The scorecard from per-seed summaries of each use case.
+
+    Args:
+        summaries: use case -> one test-phase summary per seed (``results.summarize``).
+
+    Returns:
+        Columns ``FIDELITY_COLUMNS``; ``kind`` is ``ratio``, ``claim`` or ``access_rate``;
+        ``subset`` is ``calibration`` or ``held-out`` for ratios (claims and access rates are
+        never calibrated: ``held-out``); use cases without summaries are left out.
+    """
+    rows = []
+    for ratio in PAPER_RATIOS:
+        runs = summaries.get(ratio.use_case, ())
+        if not runs:
+            continue
+        values = [results.speedup(s, ratio.method, ratio.reference, ratio.percentile) for s in runs]
+        ours, low, high = results.geometric_interval(values)
+        rows.append({
+            "kind": "ratio", "use_case": ratio.use_case,
+            "key": _ratio_key(ratio.method, ratio.reference, ratio.percentile),
+            "statement": ratio.stated, "paper": ratio.speedup, "ours": ours, "ci_low": low,
+            "ci_high": high, "n_seeds": len(values),
+            "relative_error": ours / ratio.speedup - 1.0,
+            "within_tolerance": bool(abs(ours / ratio.speedup - 1.0) <= TOLERANCE),
+            "subset": "calibration" if in_calibration_subset(ratio) else "held-out",
+        })
+    for claim in PAPER_CLAIMS:
+        runs = summaries.get(claim.use_case, ())
+        if not runs:
+            continue
+        verdicts = [results.check_claims(s, claim.use_case).set_index("key").loc[claim.key, "holds"]
+                    for s in runs]
+        checked = [bool(v) for v in verdicts if v is not None]
+        share = float(np.mean(checked)) if checked else math.nan
+        rows.append({
+            "kind": "claim", "use_case": claim.use_case, "key": claim.key,
+            "statement": claim.text, "paper": 1.0, "ours": share, "ci_low": math.nan,
+            "ci_high": math.nan, "n_seeds": len(checked), "relative_error": math.nan,
+            # A claim holds when it holds in most seeds.
+            "within_tolerance": bool(checked) and share > 0.5, "subset": "held-out",
+        })
+    for use_case in sorted(summaries):
+        runs = summaries[use_case]
+        values = [float(s.loc[s["method"] == results.SAFETAIL, "mean_access_rate"].iloc[0])
+                  for s in runs if (s["method"] == results.SAFETAIL).any()]
+        if not values:
+            continue
+        ours, low, high = results.bootstrap_interval(values)
+        rows.append({
+            "kind": "access_rate", "use_case": use_case, "key": "SafeTail mean access rate",
+            "statement": f"goal: at most {ACCESS_RATE_GOAL}", "paper": ACCESS_RATE_GOAL,
+            "ours": ours, "ci_low": low, "ci_high": high, "n_seeds": len(values),
+            "relative_error": math.nan, "within_tolerance": bool(ours <= ACCESS_RATE_GOAL),
+            "subset": "held-out",
+        })
+    return pd.DataFrame(rows, columns=list(FIDELITY_COLUMNS))
+
+
+def counts(card: pd.DataFrame) -> dict[str, tuple[int, int]]:
+    """(hits, total) for: all ratios, the calibration subset, held-out ratios, claims, access."""
+    ratios = card[card["kind"] == "ratio"]
+
+    def tally(frame: pd.DataFrame) -> tuple[int, int]:
+        return int(frame["within_tolerance"].sum()), len(frame)
+
+    return {
+        "ratios": tally(ratios),
+        "calibration": tally(ratios[ratios["subset"] == "calibration"]),
+        "held-out": tally(ratios[ratios["subset"] == "held-out"]),
+        "claims": tally(card[card["kind"] == "claim"]),
+        "access_rate": tally(card[card["kind"] == "access_rate"]),
+    }
+
+
+def _share(pair: tuple[int, int]) -> str:
+    hits, total = pair
+    return f"{hits} of {total}" + (f" ({hits / total:.0%})" if total else "")
+
+
+def counts_line(card: pd.DataFrame) -> str:
+    """One line: how close these runs are to the paper."""
+    c = counts(card)
+    return (f"Ratios within ±{TOLERANCE:.0%} of the paper: {_share(c['ratios'])} — calibration "
+            f"subset {_share(c['calibration'])}, held out {_share(c['held-out'])}; claims that "
+            f"hold: {_share(c['claims'])}; SafeTail access rate ≤ {ACCESS_RATE_GOAL}: "
+            f"{_share(c['access_rate'])} use cases.")
+
+
+def _number(value: float, digits: int = 2) -> str:
+    return "—" if value is None or math.isnan(value) else f"{value:.{digits}f}"
+
+
+def scorecard_markdown(card: pd.DataFrame) -> str:
+    """The scorecard as markdown: the counts, then one table of ratios and one of claims."""
+    lines = [counts_line(card), ""]
+    ratio_rows = []
+    for row in card[card["kind"] == "ratio"].itertuples(index=False):
+        interval = "" if math.isnan(row.ci_low) else f" [{row.ci_low:.2f}, {row.ci_high:.2f}]"
+        ratio_rows.append([
+            str(row.use_case), row.key, _number(row.paper), _number(row.ours) + interval,
+            f"{row.relative_error:+.0%}", "yes" if row.within_tolerance else "no", row.subset,
+        ])
+    lines += [
+        "Ratio = speed-up of the first-named method (latency of the second / latency of the "
+        "first, > 1: first faster). Ours: geometric mean over seeds [95% t-interval on the log "
+        "scale]. Calibration = one of the twelve numbers the unpublished world parameters were "
+        "fitted to (experiments/calibrate.py); held out = never used to choose or fit anything.",
+        "",
+        *results._table(["use case", "ratio", "paper", "ours", "error", f"within ±{TOLERANCE:.0%}",
+                         "subset"], ratio_rows),
+        "",
+    ]
+    claim_rows = [
+        [str(row.use_case), row.statement, f"{row.ours:.0%} of {row.n_seeds}",
+         "yes" if row.within_tolerance else "no"]
+        for row in card[card["kind"] == "claim"].itertuples(index=False)
+    ]
+    lines += ["Claims (our reading written into the statement; holds = in most seeds):", "",
+              *results._table(["use case", "the paper says", "holds in seeds", "holds"], claim_rows),
+              ""]
+    access_rows = [
+        [str(row.use_case), _number(row.ours, 3) + ("" if math.isnan(row.ci_low)
+                                                    else f" [{row.ci_low:.3f}, {row.ci_high:.3f}]"),
+         "yes" if row.within_tolerance else "no"]
+        for row in card[card["kind"] == "access_rate"].itertuples(index=False)
+    ]
+    lines += [f"SafeTail's mean access rate (goal ≤ {ACCESS_RATE_GOAL}; mean over seeds "
+              "[95% bootstrap interval]):", "",
+              *results._table(["use case", "access rate", "meets goal"], access_rows)]
+    return "\n".join(lines) + "\n"
+
+
+def draw_scorecard(card: pd.DataFrame, stem: Path) -> list[Path]:
+    """The paper's value against ours per ratio, log-log, identity line and ±20% band;
+    calibration and held-out ratios marked. Writes ``stem``.png and ``stem``.pdf."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ratios = card[card["kind"] == "ratio"]
+    fig, ax = plt.subplots(figsize=(5.2, 5.0))
+    values = np.concatenate([ratios["paper"].to_numpy(float), ratios["ours"].to_numpy(float),
+                             ratios["ci_low"].dropna().to_numpy(float),
+                             ratios["ci_high"].dropna().to_numpy(float)])
+    values = values[np.isfinite(values) & (values > 0)]
+    low, high = (values.min() / 1.3, values.max() * 1.3) if values.size else (0.5, 3.0)
+    grid = np.geomspace(low, high, 50)
+    ax.fill_between(grid, grid * (1 - TOLERANCE), grid * (1 + TOLERANCE), color="0.88",
+                    label=f"±{TOLERANCE:.0%}")
+    ax.plot(grid, grid, color="0.4", linewidth=1, label="ours = paper")
+    styles = {"calibration": ("s", "tab:orange", "calibration subset"),
+              "held-out": ("o", "tab:blue", "held out")}
+    for subset, (marker, colour, label) in styles.items():
+        part = ratios[ratios["subset"] == subset]
+        if part.empty:
+            continue
+        ours = part["ours"].to_numpy(float)
+        err = np.vstack([ours - part["ci_low"].fillna(part["ours"]).to_numpy(float),
+                         part["ci_high"].fillna(part["ours"]).to_numpy(float) - ours])
+        ax.errorbar(part["paper"], ours, yerr=err, fmt=marker, color=colour, markersize=5,
+                    capsize=2, linewidth=0.8, label=label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlim(low, high)
+    ax.set_ylim(low, high)
+    ax.set_xlabel("paper's ratio")
+    ax.set_ylabel("our ratio (geometric mean over seeds, 95% interval)")
+    ax.set_title("Published ratios: paper vs this project")
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    written = []
+    for suffix in (".png", ".pdf"):
+        path = stem.with_suffix(suffix)
+        fig.savefig(path, dpi=150, metadata={"CreationDate": None} if suffix == ".pdf" else None)
+        written.append(path)
+    plt.close(fig)
+    return written
+
+
+def run_line(summary: pd.DataFrame, use_case: int) -> str:
+    """The one line a run's summary.md gives: how close this single run is to the paper."""
+    card = scorecard({use_case: [summary]})
+    c = counts(card)
+    if not c["ratios"][1]:
+        return "The paper states no ratio this run can be compared with."
+    return (f"**Closeness to the paper (this run): {_share(c['ratios'])} of the paper's ratios for "
+            f"use case {use_case} within ±{TOLERANCE:.0%}** (calibration subset "
+            f"{_share(c['calibration'])}, held out {_share(c['held-out'])}); claims that hold: "
+            f"{_share(c['claims'])}. One seed only: `experiments/reproduce_all.py` gives intervals "
+            "over seeds.")
