@@ -36,7 +36,7 @@ import pandas as pd  # noqa: E402
 import reproduce_all  # noqa: E402
 
 from yafs_safetail import fidelity  # noqa: E402
-from yafs_safetail.experiment import ExperimentConfig, run_experiment  # noqa: E402
+from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment  # noqa: E402
 
 GOALS = {"ratios": 0.8, "held-out": 0.7}
 

@@ -20,9 +20,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from yafs_safetail.policy import SafeTailLearner, StateScales, encode_state, state_dim
-from yafs_safetail.policy.presets import get_preset
-from yafs_safetail.policy.state import random_observation
+from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.methods.safetail import SafeTailLearner, StateScales, encode_state, state_dim
+from yafs_safetail.methods.safetail.presets import PRESET_NAMES, get_preset
+from yafs_safetail.methods.safetail.spaces import random_observation
 
 N_SERVERS = 5
 
@@ -42,8 +43,8 @@ def per_call_us(fn: Callable[[int], object], repeats: int) -> list[float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--preset", default="tuned", choices=("paper", "tuned"))
-    parser.add_argument("--use-case", type=int, default=1, choices=(1, 2, 3))
+    parser.add_argument("--preset", default="tuned", choices=PRESET_NAMES)
+    parser.add_argument("--use-case", type=int, default=1, choices=USE_CASES)
     parser.add_argument("--repeats", type=int, default=20000)
     parser.add_argument("--keras-repeats", type=int, default=200)
     args = parser.parse_args()

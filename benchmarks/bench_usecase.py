@@ -34,7 +34,7 @@ import os  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from yafs_safetail.experiment import ExperimentConfig, run_experiment  # noqa: E402
+from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment  # noqa: E402
 
 IMPORTED = time.perf_counter()
 

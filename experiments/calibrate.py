@@ -19,9 +19,14 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.calibrate import DEFAULT_SEEDS, CalibrationConfig, CalibrationRunError, calibrate
 from yafs_safetail.cli import run_cli
-from yafs_safetail.policy.presets import PRESET_NAMES
+from yafs_safetail.methods.safetail.presets import PRESET_NAMES
+from yafs_safetail.runs.calibrate import (
+    DEFAULT_SEEDS,
+    CalibrationConfig,
+    CalibrationRunError,
+    calibrate,
+)
 
 
 class _Parser(argparse.ArgumentParser):

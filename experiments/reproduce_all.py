@@ -26,12 +26,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from yafs_safetail import fidelity, results
+from yafs_safetail import results
 from yafs_safetail.cli import run_cli
 from yafs_safetail.edge.calibration import CalibrationError, read_calibration
-from yafs_safetail.experiment import ExperimentConfig, ExperimentError, run_experiment
+from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
-from yafs_safetail.policy.presets import PRESET_NAMES
+from yafs_safetail.methods.safetail.presets import PRESET_NAMES
+from yafs_safetail.results import fidelity
+from yafs_safetail.runs.experiment import ExperimentConfig, ExperimentError, run_experiment
 
 FIGURE_STEMS = (
     ("a", "fig_a_latency_comparison", "latency comparison with target and baselines"),
@@ -187,7 +189,7 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _Parser(prog="reproduce_all.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=_int_list, default=(1, 2, 3), help="use cases (default 1,2,3)")
+    parser.add_argument("--uc", type=_int_list, default=USE_CASES, help="use cases (default: all)")
     parser.add_argument("--seeds", type=_int_list, default=(0, 1, 2, 3, 4),
                         help="distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)")
     parser.add_argument("--preset", type=_presets, default=("paper",),
@@ -198,7 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="output folder (default results/reproduce)")
     parser.add_argument("--no-figures", action="store_true", help="skip the per-run figures")
     args = parser.parse_args(argv)
-    bad = [uc for uc in args.uc if uc not in (1, 2, 3)]
+    bad = [uc for uc in args.uc if uc not in USE_CASES]
     if bad:
         raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")
 

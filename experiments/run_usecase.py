@@ -4,6 +4,7 @@
     python experiments/run_usecase.py --uc 2 --preset tuned --seed 3 --out results/uc2-tuned
     python experiments/run_usecase.py --uc 1 --steps-scale 0.1     # a quick look
     python experiments/run_usecase.py --uc 1 --policy results/uc1/policy.keras --out results/uc1-eval
+    python experiments/run_usecase.py --uc 1 --method examples/custom_policy/nearest_free.py:NearestFree
 
 The output folder gets requests.csv (one row per request and method), summary.csv and
 summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
@@ -19,14 +20,16 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from yafs_safetail.cli import run_cli
-from yafs_safetail.experiment import (
+from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.methods.registry import UserMethod
+from yafs_safetail.methods.safetail.presets import PRESET_NAMES
+from yafs_safetail.runs.experiment import (
     DEFAULT_PLACEMENT,
     DEFAULT_TOPOLOGY,
     ExperimentConfig,
     ExperimentError,
     run_experiment,
 )
-from yafs_safetail.policy.presets import PRESET_NAMES
 
 
 class _Parser(argparse.ArgumentParser):
@@ -79,7 +82,7 @@ def _levels(text: str) -> tuple[int, ...]:
 def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     parser = _Parser(prog="run_usecase.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=int, required=True, choices=(1, 2, 3),
+    parser.add_argument("--uc", type=int, required=True, choices=USE_CASES,
                         help="use case: 1 object detection, 2 instance segmentation, 3 noise removal")
     parser.add_argument("--preset", default="paper", choices=PRESET_NAMES,
                         help="learner preset (default: paper = Table I verbatim)")
@@ -94,6 +97,9 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                         help="YAFS topology JSON (default topologies/paper_5servers.json)")
     parser.add_argument("--placement", type=Path, default=None,
                         help="YAFS placement JSON (default: placements/<topology file name>)")
+    parser.add_argument("--method", action="append", default=[], metavar="[NAME=]FILE.py:CLASS",
+                        help="add your own Policy to the comparison (also module:Class; repeatable; "
+                             "named after the class unless NAME= is given)")
     parser.add_argument("--policy", type=Path, default=None,
                         help="evaluate this saved policy (.keras) without training")
     parser.add_argument("--workers", type=_positive_int, default=2,
@@ -114,6 +120,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=out,
         topology=args.topology, placement=placement, steps_scale=args.steps_scale,
         redundancy_levels=args.redundancy, policy=args.policy,
+        methods=tuple(UserMethod(spec) for spec in args.method),
         write_yafs_csv=not args.no_yafs_csv, figures=not args.no_figures,
         progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
     )

@@ -11,9 +11,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from yafs_safetail.calibrate import objective, ratio_key
 from yafs_safetail.edge.calibration import CALIBRATED_PARAMETERS, CALIBRATION_FILE
-from yafs_safetail.paper_results import CALIBRATION_RATIOS
+from yafs_safetail.results.paper import CALIBRATION_RATIOS
+from yafs_safetail.runs.calibrate import objective, ratio_key
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 SCRIPT = REPOSITORY / "experiments" / "calibrate.py"

@@ -20,20 +20,17 @@ from yafs_safetail.edge.calibration import (
     read_calibration,
     world_settings,
 )
-from yafs_safetail.edge.topology_io import load_scenario
-from yafs_safetail.edge.traces import load_traces, scale_load_levels
+from yafs_safetail.edge.scenario import load_scenario
+from yafs_safetail.edge.traces import scale_load_levels
 from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import build_world, trace_inputs
+from yafs_safetail.edge.world import build_world
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def inputs():
-    traces = load_traces(ROOT / "traces")
-    rough = trace_inputs(traces, get_use_case(1), lambda g, k: np.zeros(len(k)))
-    median = rough.median_compute_by_k_s
-    return trace_inputs(traces, get_use_case(1), lambda g, k: median[np.asarray(k) - 1])
+def inputs(uc1_median_inputs):
+    return uc1_median_inputs
 
 
 def scenario(name: str = "paper_5servers"):

@@ -7,23 +7,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from yafs_safetail.edge.model import EdgeModel, edge_application
-from yafs_safetail.edge.topology_io import load_scenario
-from yafs_safetail.edge.traces import load_traces
+from yafs_safetail.edge.scenario import load_scenario
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world, trace_inputs
-from yafs_safetail.placement import EdgePlacement
-from yafs_safetail.population import EdgePopulation
-from yafs_safetail.selection import Oracle, RandX
+from yafs_safetail.methods import Oracle, RandX
+from yafs_safetail.sim.hooks import EdgeModel, edge_application
+from yafs_safetail.sim.placement import EdgePlacement
+from yafs_safetail.sim.population import EdgePopulation
+from yafs_safetail.sim.selection import PolicySelection
 from yafs_safetail.yafs.core import Sim
 from yafs_safetail.yafs.topology import Topology
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def traces():
-    return load_traces(ROOT / "traces")
 
 
 def inputs_for(traces, uc):
@@ -36,13 +31,13 @@ def inputs_for(traces, uc):
     )
 
 
-def run(world, make_selection, n_steps, listeners=()):
+def run(world, policy, n_steps, listeners=(), selection_class=PolicySelection):
     model = EdgeModel(world)
     scenario = world.scenario
     topology = Topology()
     topology.load(scenario.topology.data)
     sim = Sim(topology, link_delay=model, service_model=model, write_results=False)
-    selection = make_selection(model)
+    selection = selection_class(model, policy)
     population = EdgePopulation(scenario.user_node)
     sim.deploy_app(edge_application(scenario.app_name, scenario.module_name),
                    EdgePlacement(scenario.placement), population, selection)
@@ -61,27 +56,24 @@ def test_every_copy_latency_equals_its_eq1_decomposition(traces):
     world = build_world(scenario, uc, inputs_for(traces, uc), 150, seed=7, phase="test")
     checked = []
 
-    class KeepingOracle(Oracle):
-        def request_completed(self, record, observation):
-            # Before the base class forgets the request's copies, compare each answered copy.
-            outcome = self.last_outcome
+    class Checking(PolicySelection):
+        def on_request_complete(self, sim, outcome):
+            # Before the selection forgets the request's copies, compare each answered copy.
+            record_step = self.edge_model.begin_request(outcome.request_id)
             for copy_outcome in outcome.copies:
                 server = self.edge_model.server_index(copy_outcome.dst_node)
                 parts = self.edge_model.copy_breakdown(outcome.request_id, server)
                 if copy_outcome.status == "answered":
                     latency = copy_outcome.time_end - outcome.time_emit
                     assert latency == pytest.approx(parts.total_s, rel=1e-9, abs=1e-12)
-                    table = world.copy_latency(record.step, server, int(world.background_users[record.step, server]))
+                    table = world.copy_latency(record_step, server, int(world.background_users[record_step, server]))
                     assert parts.total_s == pytest.approx(table.total_s, rel=1e-9)
                     checked.append(server)
                 else:
                     assert copy_outcome.status == "refused" and parts is None
-
-        def on_request_complete(self, sim, outcome):
-            self.last_outcome = outcome
             super().on_request_complete(sim, outcome)
 
-    model, selection = run(world, KeepingOracle, 150)
+    model, selection = run(world, Oracle(5, np.random.default_rng(0)), 150, selection_class=Checking)
     assert len(selection.records) == 150
     assert len(checked) > 300
     for record in selection.records:
@@ -99,7 +91,7 @@ def test_server_at_max_load_refuses_and_all_refused_falls_back(traces):
     uc = get_use_case(1)
     scenario = load_scenario(ROOT / "topologies/3servers.json", ROOT / "placements/3servers.json")
     world = build_world(scenario, uc, inputs_for(traces, uc), 1000, seed=11, phase="test", episode_steps=50)
-    model, selection = run(world, Oracle, 1000)
+    model, selection = run(world, Oracle(world.n_servers, np.random.default_rng(0)), 1000)
     full = world.background_users >= 4
     for record in selection.records:
         assert record.refused == int(full[record.step].sum())
@@ -116,7 +108,7 @@ def test_compute_uses_k_equal_active_users_plus_one(traces):
     uc = get_use_case(1)
     scenario = load_scenario(ROOT / "topologies/paper_5servers.json", ROOT / "placements/paper_5servers.json")
     world = build_world(scenario, uc, inputs_for(traces, uc), 100, seed=3, phase="test")
-    model, selection = run(world, Oracle, 100)
+    model, selection = run(world, Oracle(world.n_servers, np.random.default_rng(0)), 100)
     for record in selection.records:
         if record.fallback:
             continue
@@ -138,7 +130,7 @@ def test_editing_the_topology_changes_the_simulation(traces):
 
     def latencies(scenario):
         world = build_world(scenario, uc, inputs, 200, seed=5, phase="test")
-        return np.array([r.latency_s for r in run(world, Oracle, 200)[1].records])
+        return np.array([r.latency_s for r in run(world, Oracle(world.n_servers, np.random.default_rng(0)), 200)[1].records])
 
     base = latencies(_edited(lambda t, p: None))
 
@@ -163,7 +155,7 @@ def test_replies_route_back_to_the_user_and_population_runs_n_steps(traces):
     scenario = load_scenario(ROOT / "topologies/7servers.json", ROOT / "placements/7servers.json")
     world = build_world(scenario, uc, inputs_for(traces, uc), 60, seed=1, phase="test")
     rng = np.random.default_rng(0)
-    model, selection = run(world, lambda m: RandX(m, 3, rng), 60)
+    model, selection = run(world, RandX(7, rng, 3), 60)
     assert [r.step for r in selection.records] == list(range(60))
     assert all(r.time_emit_s == pytest.approx(60.0 * r.step) for r in selection.records)
     assert all(len(r.servers) == 3 and r.n_servers == 7 for r in selection.records)

@@ -6,12 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from yafs_safetail.edge.topology_io import (
-    ScenarioError,
-    load_placement,
-    load_scenario,
-    load_topology,
-)
+from yafs_safetail.edge.scenario import load_placement, load_scenario
+from yafs_safetail.edge.topology_io import ScenarioError, load_topology
 
 ROOT = Path(__file__).resolve().parents[1]
 VARIANTS = {"paper_5servers": 5, "3servers": 3, "7servers": 7}

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from yafs_safetail.edge.latency import target_latency_s
-from yafs_safetail.edge.topology_io import load_scenario
-from yafs_safetail.edge.traces import load_traces
+from yafs_safetail.edge.scenario import load_scenario
 from yafs_safetail.edge.usecases import USE_CASES, UnknownUseCaseError, get_use_case, knee_processes
 from yafs_safetail.edge.world import (
     WorldError,
@@ -19,11 +18,6 @@ from yafs_safetail.edge.world import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def traces():
-    return load_traces(ROOT / "traces")
 
 
 def trace_max_predictor(inputs_without_model):

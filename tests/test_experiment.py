@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from yafs_safetail import results
-from yafs_safetail.experiment import (
+from yafs_safetail.runs.experiment import (
     REPOSITORY,
     YAFS_DIR,
     ExperimentConfig,
@@ -140,7 +140,7 @@ def test_inside_a_daemonic_process_everything_runs_here(runs, tmp_path, monkeypa
         daemon = True
 
     # multiprocessing.Pool workers are daemonic and may not start processes of their own.
-    monkeypatch.setattr("yafs_safetail.experiment.multiprocessing.current_process", Daemonic)
+    monkeypatch.setattr("yafs_safetail.runs.workers.multiprocessing.current_process", Daemonic)
     report = run_experiment(tiny_config(tmp_path / "run", workers=2))
     assert report.timings_s["baselines_in_workers"] == 0.0
     assert compared_files(tmp_path / "run") == compared_files(runs[0].out_dir)
@@ -155,7 +155,7 @@ def test_a_failing_baseline_worker_fails_the_run_and_writes_nothing(tmp_path, mo
         raise ExperimentError(f"{name}: broken on purpose")
 
     # Forked workers inherit the patched module.
-    monkeypatch.setattr("yafs_safetail.experiment.make_baseline", broken)
+    monkeypatch.setattr("yafs_safetail.runs.workers.make_baseline", broken)
     with pytest.raises(ExperimentError, match="Oracle: broken on purpose"):
         run_experiment(tiny_config(out, workers=2))
     assert [p.name for p in tmp_path.iterdir()] == ["run"]

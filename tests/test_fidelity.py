@@ -8,8 +8,9 @@ import math
 import pandas as pd
 import pytest
 
-from yafs_safetail import fidelity, results
-from yafs_safetail.paper_results import PAPER_RATIOS
+from yafs_safetail import results
+from yafs_safetail.results import fidelity
+from yafs_safetail.results.paper import PAPER_RATIOS
 
 
 def summary(scale_safetail: float, access_rate: float = 0.3) -> pd.DataFrame:

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from yafs_safetail.policy import action_of, n_actions, reward, subset_of, target_vector
+from yafs_safetail.methods.safetail import action_of, n_actions, reward, subset_of, target_vector
 
 n_servers_st = st.integers(min_value=1, max_value=10)
 

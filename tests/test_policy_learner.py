@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from yafs_safetail.policy import SafeTailLearner, target_vector
-from yafs_safetail.policy.learner import PolicyFileError
-from yafs_safetail.policy.network import NumpyForward
-from yafs_safetail.policy.presets import (
+from yafs_safetail.methods.safetail import SafeTailLearner, target_vector
+from yafs_safetail.methods.safetail.network import NumpyForward
+from yafs_safetail.methods.safetail.persistence import PolicyFileError
+from yafs_safetail.methods.safetail.presets import (
     ORIGINAL_RUN_STEPS,
     ORIGINAL_UPDATES_PER_STEP,
     LearnerConfig,

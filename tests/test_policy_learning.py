@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.policy import (
+from yafs_safetail.methods.safetail import (
     SafeTailLearner,
     StateScales,
     encode_state,
@@ -28,8 +28,8 @@ from yafs_safetail.policy import (
     state_dim,
     subset_of,
 )
-from yafs_safetail.policy.presets import LearnerConfig, get_preset
-from yafs_safetail.policy.state import random_observation
+from yafs_safetail.methods.safetail.presets import LearnerConfig, get_preset
+from yafs_safetail.methods.safetail.spaces import random_observation
 
 N_SERVERS = 5
 TARGET_S = 0.55

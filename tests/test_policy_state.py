@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.policy.state import (
+from yafs_safetail.methods.safetail.spaces import (
     StateScales,
     encode_state,
     state_dim,
@@ -28,6 +28,7 @@ def make_observation(n: int = 3, gamma: tuple[float, ...] = (2.5,)) -> Observati
         user_location=np.array([3.0, -4.0]),
         user_uplink_bps=10e6,
         user_downlink_bps=40e6,
+        server_max_load=np.full(n, 4),
     )
 
 

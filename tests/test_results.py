@@ -1,4 +1,4 @@
-"""Tests for the results folder contract (yafs_safetail.results, yafs_safetail.paper_results)."""
+"""Tests for the results folder contract (yafs_safetail.results, yafs_safetail.results.paper)."""
 
 from __future__ import annotations
 
@@ -11,13 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from yafs_safetail import paper_results, results
+from yafs_safetail import results
 from yafs_safetail.results import (
     REQUESTS_COLUMNS,
     SUMMARY_COLUMNS,
     ResultsFileError,
     RunMetadata,
 )
+from yafs_safetail.results import paper as paper_results
 
 N_SERVERS = 5
 BASELINES = [f"{fam}-{x}" for fam in ("Rand", "MinLoad", "MinProp") for x in (1, 2, 3)]
@@ -431,4 +432,4 @@ def test_aggregate_rejects_mixed_use_cases(tmp_path):
     ],
 )
 def test_difference_notes(mean, low, high, paper, start):
-    assert results._difference_note(mean, low, high, paper, "A", "B").startswith(start)
+    assert results.paper._difference_note(mean, low, high, paper, "A", "B").startswith(start)

@@ -17,10 +17,12 @@ import pandas as pd
 import pytest
 
 from yafs_safetail import results
-from yafs_safetail.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, baseline_names
-from yafs_safetail.figures import FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR
+from yafs_safetail.figures import FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR, build_figures
+from yafs_safetail.figures import load_inputs as load_figure_inputs
+from yafs_safetail.runs.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, baseline_names
 
 SCRIPT = REPOSITORY / "experiments" / "run_usecase.py"
+EXAMPLE = REPOSITORY / "examples" / "custom_policy" / "nearest_free.py"
 TINY = ["--steps-scale", "0.02", "--redundancy", "1,2"]
 FIGURES = [f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in FIGURE_FORMATS]
 
@@ -119,6 +121,36 @@ def test_saved_policy_is_evaluated_without_training(uc1_run, tmp_path):
     assert not (out / FIGURES_DIR).exists() and not (out / YAFS_DIR).exists()
 
 
+def test_users_methods_join_the_comparison_on_the_same_requests(uc1_run, tmp_path):
+    out = tmp_path / "mine"
+    done = run_script("--uc", "1", "--seed", "4", "--policy", uc1_run / POLICY_FILE, "--out", out,
+                      "--quiet", "--no-yafs-csv", "--method", f"{EXAMPLE}:NearestFree",
+                      "--method", f"Nearest again={EXAMPLE}:NearestFree", *TINY)
+    assert done.returncode == 0, done.stderr
+    mine = ["NearestFree", "Nearest again"]
+    requests = results.read_requests_csv(out / "requests.csv")
+    rows = {name: requests[requests["method"] == name] for name in mine}
+    assert all(len(part) == 80 for part in rows.values())
+    # Same requests and random numbers: the same deterministic policy gives the same rows, and
+    # the built-in methods' rows are those of the run without the user's methods.
+    columns = ["step", "servers", "latency_s", "refused", "fallback"]
+    assert rows["NearestFree"][columns].values.tolist() == rows["Nearest again"][columns].values.tolist()
+    assert set(rows["NearestFree"]["n_selected"]) == {1}
+    earlier = results.read_requests_csv(uc1_run / "requests.csv")
+    oracle = [part[part["method"] == "Oracle"]["latency_s"].tolist() for part in (requests, earlier)]
+    assert oracle[0] == oracle[1]
+    assert (rows["NearestFree"]["latency_s"].to_numpy() >= requests[requests["method"] == "Oracle"]["latency_s"].to_numpy()).all()
+
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["method"])[-2:] == sorted(mine)
+    assert json.loads((out / "run.json").read_text())["methods"][-2:] == sorted(mine)
+    assert all(f"| {name} |" in (out / "summary.md").read_text() for name in mine)
+    frame, run = load_figure_inputs(out)
+    panel_a = build_figures(frame, run)["a"]
+    legend = panel_a.axes[0].get_legend_handles_labels()[1]
+    assert set(mine) <= set(legend)
+
+
 def test_policy_for_another_number_of_servers_is_refused(uc1_run, tmp_path):
     out = tmp_path / "eval"
     kept = earlier_results(out)
@@ -178,6 +210,10 @@ def test_help():
         (["--uc", "1", "--redundancy", "1,9"], ["--redundancy", "x=9"]),
         (["--uc", "1", "--workers", "0"], ["--workers", "0"]),
         (["--uc", "1", "--bogus"], ["--bogus"]),
+        (["--uc", "1", "--method", "nowhere.py:Mine"], ["--method", "nowhere.py", "no such file"]),
+        (["--uc", "1", "--method", f"{EXAMPLE}:Nope"], ["--method", "Nope", "not a Policy subclass"]),
+        (["--uc", "1", "--method", f"A={EXAMPLE}:NearestFree", "--method", f"A={EXAMPLE}:NearestFree"],
+         ["--method", "two methods are named 'A'"]),
     ],
 )
 def test_bad_arguments_give_one_line_and_keep_earlier_results(tmp_path, args, fragments):

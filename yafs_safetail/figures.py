@@ -28,17 +28,19 @@ import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from yafs_safetail import results
 from yafs_safetail.cli import run_cli
-from yafs_safetail.paper_results import PERCENTILE_NAMES
 from yafs_safetail.results import ResultsFileError, RunMetadata
+from yafs_safetail.results.paper import PERCENTILE_NAMES
 
 FIGURES_DIR = "figures"
 FIGURE_FORMATS: tuple[str, ...] = ("png", "pdf")
@@ -53,7 +55,7 @@ FIGURE_STEMS: dict[str, str] = {
 }
 PNG_DPI = 150
 
-_STYLE = {
+_STYLE: dict[Any, Any] = {  # matplotlib types its keys as literals
     "font.size": 8.5,
     "axes.titlesize": 9,
     "axes.grid": True,
@@ -75,14 +77,26 @@ _FAMILY_COLOURS = {
 _PHASE_COLOURS = {"train": "#1f5fa8", "test": "#d64545"}
 
 
-def _colour(method: str) -> str:
+#: Users' own methods (``--method``), in report order.
+_OWN_COLOURS = ("#7b4fa0", "#17a2a2", "#8c6d31", "#c44e97", "#7f7f7f")
+
+
+def _own_methods(present: Sequence[str]) -> list[str]:
+    """The methods that are neither SafeTail, Oracle nor a baseline (users' policies)."""
+    built_in = {results.SAFETAIL, results.ORACLE, *results.baselines_of(present)}
+    return [m for m in results.sort_methods(present) if m not in built_in]
+
+
+def _colour(method: str, own: Sequence[str] = ()) -> str:
+    if method in own:
+        return _OWN_COLOURS[min(list(own).index(method), len(_OWN_COLOURS) - 1)]
     family, level = results.parse_method(method)
     shades = _FAMILY_COLOURS.get(family, ("#7f7f7f",))
     index = 0 if level is None else min(level - 1, len(shades) - 1)
     return shades[index]
 
 
-def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, object]:
+def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
     # Fixed margins rather than a layout engine: constrained layout measures every text
     # artist on each save and roughly doubles the drawing time.
     figure = Figure(figsize=_FIGSIZE_IN)
@@ -117,15 +131,16 @@ def _save(figure: Figure, folder: Path, stem: str) -> list[Path]:
     return written
 
 
-def _percentile_bars(axes: object, summary: pd.DataFrame, methods: Sequence[str]) -> None:
+def _percentile_bars(axes: Axes, summary: pd.DataFrame, methods: Sequence[str]) -> None:
     n_methods = max(len(methods), 1)
     width = 0.8 / n_methods
     positions = np.arange(len(results.PERCENTILES))
+    own = _own_methods(list(summary["method"]))
     for i, method in enumerate(methods):
         row = summary[summary["method"] == method].iloc[0]
         heights = [float(row[f"p{p}_s"]) for p in results.PERCENTILES]
         axes.bar(positions + (i - (n_methods - 1) / 2) * width, heights, width * 0.95,
-                 label=method, color=_colour(method))
+                 label=method, color=_colour(method, own))
     axes.set_xticks(positions, [PERCENTILE_NAMES[p] for p in results.PERCENTILES])
     axes.set_ylabel("latency (s)")
 
@@ -141,7 +156,10 @@ def _latency_comparison(requests: pd.DataFrame, summary: pd.DataFrame,
     present = list(summary["method"])
     methods = [m for m in (results.SAFETAIL, results.ORACLE) if m in present]
     methods += [b for b in results.baselines_of(present) if results.parse_method(b)[1] == 1]
-    figure, axes = _new_figure(run, "(a) Latency: SafeTail, Oracle, x = 1 baselines")
+    own = _own_methods(present)
+    methods += own
+    title = "(a) Latency: SafeTail, Oracle, x = 1 baselines" + (", your methods" if own else "")
+    figure, axes = _new_figure(run, title)
     _percentile_bars(axes, summary, methods)
     axes.axhline(_average_target_s(requests), color="black", linestyle="--", linewidth=1,
                  label="average target")

@@ -14,13 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
-from yafs_safetail.edge.model import EdgeModel, edge_application
-from yafs_safetail.edge.topology_io import load_scenario
+from yafs_safetail.edge.scenario import load_scenario
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world, load_inputs
-from yafs_safetail.placement import EdgePlacement
-from yafs_safetail.population import EdgePopulation
-from yafs_safetail.selection import make_baseline
+from yafs_safetail.methods import make_baseline
+from yafs_safetail.sim.hooks import EdgeModel, edge_application
+from yafs_safetail.sim.placement import EdgePlacement
+from yafs_safetail.sim.population import EdgePopulation
+from yafs_safetail.sim.selection import PolicySelection
 from yafs_safetail.yafs.core import Sim
 from yafs_safetail.yafs.topology import Topology
 
@@ -48,7 +49,8 @@ def main() -> None:
     sim = Sim(topology, default_results_path=args.results, link_delay=edge, service_model=edge,
               write_results=args.results is not None)
     app = edge_application(scenario.app_name, scenario.module_name)
-    selection = make_baseline(args.method, edge, np.random.default_rng(args.seed))
+    policy = make_baseline(args.method, edge.n_servers, np.random.default_rng(args.seed))
+    selection = PolicySelection(edge, policy)
     population = EdgePopulation(scenario.user_node)
     sim.deploy_app(app, EdgePlacement(scenario.placement), population, selection)
     sim.run(until=population.until_s(args.steps))

@@ -304,7 +304,7 @@ def export_model(model: Any, meta: Mapping[str, Any], models_dir: Path) -> list[
     use_case = int(meta["use_case"])
     stem = models_dir / f"compute_uc{use_case}"
     numpy_model = ComputeModel.from_keras(use_case, model, pub.SIGMA_S[use_case])
-    arrays: dict[str, np.ndarray] = {
+    arrays: dict[str, Any] = {
         "n_layers": np.array(len(numpy_model.weights)),
         "input_mean": numpy_model.input_mean,
         "input_std": numpy_model.input_std,

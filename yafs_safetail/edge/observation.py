@@ -7,12 +7,12 @@ edge model (the placement JSON's order of edge servers).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class Observation:
     """ω^t = (Ω_1..Ω_n, P_j, U) at the moment a request is issued.
 
@@ -31,6 +31,10 @@ class Observation:
         user_location: L, the user's coordinates from the topology (zeros when absent).
         user_uplink_bps: Λ^u.
         user_downlink_bps: Λ^d.
+        server_max_load: each server's load limit: a server with this many active users
+            refuses a copy, shape (n,), integers (Table I: 4 everywhere).
+        step: the request's index in its phase (to tell requests apart; not part of ω^t and
+            not in the Gymnasium observation).
     """
 
     server_uplink_bps: np.ndarray
@@ -45,6 +49,18 @@ class Observation:
     user_location: np.ndarray
     user_uplink_bps: float
     user_downlink_bps: float
+    server_max_load: np.ndarray
+    step: int = -1
+
+    def __eq__(self, other: object) -> bool:
+        # Field by field, arrays by value (the generated __eq__ would compare arrays
+        # element-wise and fail on their truth value).
+        if not isinstance(other, Observation):
+            return NotImplemented
+        return all(np.array_equal(getattr(self, f.name), getattr(other, f.name))
+                   for f in fields(Observation))
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
 
     @property
     def n_servers(self) -> int:

@@ -12,27 +12,27 @@ that YAFS itself ignores:
   pool the server's RTTs are drawn from;
 * every link keeps YAFS's ``"BW"`` and ``"PR"`` so YAFS's own delay formula still works.
 
-The placement JSON is YAFS's (``initialAllocation``), with one entry per edge server for the
-service module; its order of edge servers is the server index order used everywhere
-(Observation arrays, subsets, results).
+The placement and the scenario that joins both are in ``edge.scenario``.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import Any, TypeGuard
 
 USER_TYPE = "user"
 ACCESS_POINT_TYPE = "access_point"
 EDGE_SERVER_TYPE = "edge_server"
 CONDITION_KEY = "condition"
 LOAD_DEVICE_KEY = "load_device"
+#: YAFS's link ``BW`` is megabytes per time unit (its delay is bytes / (BW · 1e6) + PR); the
+#: edge model works in bits per second, so one unit of BW is 8e6 bit/s. Converted here, at
+#: the boundary, and nowhere else.
+YAFS_BW_BPS = 8e6
 
 
 class ScenarioError(ValueError):
@@ -72,7 +72,7 @@ def _read_json(source: JsonSource, what: str) -> tuple[dict[str, Any], str]:
     return data, name
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: Any) -> TypeGuard[int | float]:
     return (
         isinstance(value, int | float)
         and not isinstance(value, bool)
@@ -80,7 +80,7 @@ def _is_number(value: Any) -> bool:
     )
 
 
-def _is_node_id(value: Any) -> bool:
+def _is_node_id(value: Any) -> TypeGuard[int | str]:
     return (isinstance(value, int) and not isinstance(value, bool)) or isinstance(value, str)
 
 
@@ -97,10 +97,12 @@ class EdgeTopology:
         conditions: distance condition per edge server node.
         load_devices: load-trace device per edge server node, or None (default: index).
         user_location: (x, y) of the user; zeros when absent.
-        user_link_bw: BW of the user–access point link (Mbit/s, YAFS's unit).
-        user_link_pr: PR of the user–access point link (s).
-        server_link_bw: BW of each access point–server link, per edge server node (Mbit/s).
-        server_link_pr: PR of each access point–server link, per edge server node (s).
+        user_link_bandwidth_bps: the user–access point link's bandwidth (its YAFS ``BW``, in
+            megabytes per second, converted to bits per second).
+        user_link_pr_s: PR of the user–access point link (s).
+        server_link_bandwidth_bps: each access point–server link's bandwidth, per edge server
+            node (bits per second, from ``BW``).
+        server_link_pr_s: PR of each access point–server link, per edge server node (s).
     """
 
     source: str
@@ -111,10 +113,10 @@ class EdgeTopology:
     conditions: dict[int | str, int]
     load_devices: dict[int | str, int | None]
     user_location: tuple[float, float]
-    user_link_bw: float
-    user_link_pr: float
-    server_link_bw: dict[int | str, float]
-    server_link_pr: dict[int | str, float]
+    user_link_bandwidth_bps: float
+    user_link_pr_s: float
+    server_link_bandwidth_bps: dict[int | str, float]
+    server_link_pr_s: dict[int | str, float]
 
 
 def load_topology(source: JsonSource) -> EdgeTopology:
@@ -191,17 +193,19 @@ def load_topology(source: JsonSource) -> EdgeTopology:
     user, access_point = users[0], access_points[0]
 
     conditions: dict[int | str, int] = {}
-    server_link_bw: dict[int | str, float] = {}
-    server_link_pr: dict[int | str, float] = {}
-    user_link_bw = user_link_pr = None
+    server_link_bps: dict[int | str, float] = {}
+    server_link_pr_s: dict[int | str, float] = {}
+    user_link_bps = user_link_pr_s = None
     for index, link in enumerate(links):
         where = f"link[{index}]"
         if not isinstance(link, dict):
             raise ScenarioError(name, where, "expected an object")
-        ends = (link.get("s"), link.get("d"))
-        for key, node in zip(("s", "d"), ends, strict=True):
-            if node not in types:
+        ends: list[int | str] = []
+        for key in ("s", "d"):
+            node = link.get(key)
+            if not _is_node_id(node) or node not in types:
                 raise ScenarioError(name, f"{where}.{key}", f"unknown node id {node!r}")
+            ends.append(node)
         for key in ("BW", "PR"):
             value = link.get(key)
             if not _is_number(value) or value < 0 or (key == "BW" and value == 0):
@@ -210,7 +214,7 @@ def load_topology(source: JsonSource) -> EdgeTopology:
                 )
         pair = set(ends)
         if pair == {user, access_point}:
-            user_link_bw, user_link_pr = float(link["BW"]), float(link["PR"])
+            user_link_bps, user_link_pr_s = float(link["BW"]) * YAFS_BW_BPS, float(link["PR"])
             continue
         servers = [node for node in ends if types[node] == EDGE_SERVER_TYPE]
         if len(servers) != 1 or access_point not in pair:
@@ -228,9 +232,9 @@ def load_topology(source: JsonSource) -> EdgeTopology:
                 name, f"{where}.{CONDITION_KEY}", f"missing or not an integer: {condition!r}"
             )
         conditions[server] = condition
-        server_link_bw[server] = float(link["BW"])
-        server_link_pr[server] = float(link["PR"])
-    if user_link_bw is None:
+        server_link_bps[server] = float(link["BW"]) * YAFS_BW_BPS
+        server_link_pr_s[server] = float(link["PR"])
+    if user_link_bps is None or user_link_pr_s is None:
         raise ScenarioError(name, "link", "no link between the user and the access point")
     for server in server_order:
         if server not in conditions:
@@ -246,214 +250,8 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         conditions=conditions,
         load_devices=load_devices,
         user_location=user_location,
-        user_link_bw=user_link_bw,
-        user_link_pr=user_link_pr,
-        server_link_bw=server_link_bw,
-        server_link_pr=server_link_pr,
-    )
-
-
-@dataclass(frozen=True)
-class EdgePlacementSpec:
-    """The validated content of a placement file.
-
-    Attributes:
-        source: file name (or ``<placement dict>``) for messages.
-        data: the raw YAFS placement JSON.
-        app_name: the application every entry deploys.
-        module_name: the service module every entry deploys.
-        server_nodes: the nodes hosting the service, in file order (= server index order).
-    """
-
-    source: str
-    data: dict[str, Any]
-    app_name: str
-    module_name: str
-    server_nodes: tuple[int | str, ...]
-
-
-def load_placement(source: JsonSource) -> EdgePlacementSpec:
-    """Reads and validates a placement JSON (one service module on each edge server).
-
-    Raises:
-        ScenarioError: missing file, bad JSON, or a malformed entry.
-    """
-    data, name = _read_json(source, "placement")
-    entries = data.get("initialAllocation")
-    if not isinstance(entries, list) or not entries:
-        raise ScenarioError(name, "initialAllocation", "missing or empty list")
-    app_names: set[str] = set()
-    module_names: set[str] = set()
-    nodes: list[int | str] = []
-    for index, entry in enumerate(entries):
-        where = f"initialAllocation[{index}]"
-        if not isinstance(entry, dict):
-            raise ScenarioError(name, where, "expected an object")
-        for key in ("module_name", "app"):
-            if not isinstance(entry.get(key), str) or not entry[key]:
-                raise ScenarioError(name, f"{where}.{key}", "missing or not a non-empty string")
-        node = entry.get("id_resource")
-        if not _is_node_id(node):
-            raise ScenarioError(name, f"{where}.id_resource", f"not a node id: {node!r}")
-        if node in nodes:
-            raise ScenarioError(name, f"{where}.id_resource", f"node {node!r} listed twice")
-        app_names.add(entry["app"])
-        module_names.add(entry["module_name"])
-        nodes.append(node)
-    if len(app_names) != 1 or len(module_names) != 1:
-        raise ScenarioError(
-            name,
-            "initialAllocation",
-            "every entry must deploy the same app and module (the edge service); "
-            f"found apps {sorted(app_names)} and modules {sorted(module_names)}",
-        )
-    return EdgePlacementSpec(
-        source=name,
-        data=data,
-        app_name=app_names.pop(),
-        module_name=module_names.pop(),
-        server_nodes=tuple(nodes),
-    )
-
-
-@dataclass(frozen=True)
-class EdgeScenario:
-    """A topology and its placement, checked against each other and against the traces.
-
-    Attributes:
-        topology: the validated topology.
-        placement: the validated placement.
-        server_nodes: edge server node ids in server index order (placement order).
-        server_conditions: distance condition per server index.
-        server_load_devices: load-trace device per server index.
-    """
-
-    topology: EdgeTopology
-    placement: EdgePlacementSpec
-    server_nodes: tuple[int | str, ...]
-    server_conditions: tuple[int, ...]
-    server_load_devices: tuple[int, ...]
-
-    @property
-    def server_link_bw(self) -> tuple[float, ...]:
-        """BW (Mbit/s) of each server's access-point link, per server index."""
-        return tuple(self.topology.server_link_bw[node] for node in self.server_nodes)
-
-    @property
-    def server_link_pr(self) -> tuple[float, ...]:
-        """PR (s) of each server's access-point link, per server index."""
-        return tuple(self.topology.server_link_pr[node] for node in self.server_nodes)
-
-    @property
-    def user_link_bw(self) -> float:
-        """BW (Mbit/s) of the user's access-point link."""
-        return self.topology.user_link_bw
-
-    @property
-    def user_link_pr(self) -> float:
-        """PR (s) of the user's access-point link."""
-        return self.topology.user_link_pr
-
-    @property
-    def n_servers(self) -> int:
-        return len(self.server_nodes)
-
-    @property
-    def user_node(self) -> int | str:
-        return self.topology.user_node
-
-    @property
-    def access_point_node(self) -> int | str:
-        return self.topology.access_point_node
-
-    @property
-    def user_location(self) -> np.ndarray:
-        return np.asarray(self.topology.user_location, dtype=float)
-
-    @property
-    def app_name(self) -> str:
-        return self.placement.app_name
-
-    @property
-    def module_name(self) -> str:
-        return self.placement.module_name
-
-
-def build_scenario(
-    topology: EdgeTopology,
-    placement: EdgePlacementSpec,
-    known_conditions: Iterable[int] | None = None,
-    n_load_devices: int | None = None,
-) -> EdgeScenario:
-    """Checks a placement against its topology (and optionally the traces).
-
-    Args:
-        topology: from :func:`load_topology`.
-        placement: from :func:`load_placement`.
-        known_conditions: the distance conditions the propagation trace has; None skips
-            the check.
-        n_load_devices: number of devices in the load trace; None skips the check.
-
-    Raises:
-        ScenarioError: a placement node that is not an edge server, an edge server without
-            the service, an unknown condition or load device.
-    """
-    servers = set(topology.edge_server_nodes)
-    for index, node in enumerate(placement.server_nodes):
-        if node not in servers:
-            raise ScenarioError(
-                placement.source,
-                f"initialAllocation[{index}].id_resource",
-                f"node {node!r} is not an edge_server of {topology.source}",
-            )
-    missing = [node for node in topology.edge_server_nodes if node not in placement.server_nodes]
-    if missing:
-        raise ScenarioError(
-            placement.source,
-            "initialAllocation",
-            f"{len(placement.server_nodes)} servers placed but {topology.source} has "
-            f"{len(servers)} edge servers (missing {missing})",
-        )
-    conditions = tuple(topology.conditions[node] for node in placement.server_nodes)
-    if known_conditions is not None:
-        allowed = sorted(set(int(c) for c in known_conditions))
-        for node, condition in zip(placement.server_nodes, conditions, strict=True):
-            if condition not in allowed:
-                raise ScenarioError(
-                    topology.source,
-                    f"link to edge server {node!r}.{CONDITION_KEY}",
-                    f"unknown distance condition {condition}; the propagation trace has {allowed}",
-                )
-    devices = []
-    for index, node in enumerate(placement.server_nodes):
-        device = topology.load_devices[node]
-        device = index if device is None else device
-        if n_load_devices is not None and device >= n_load_devices:
-            raise ScenarioError(
-                topology.source,
-                f"edge server {node!r}.{LOAD_DEVICE_KEY}",
-                f"unknown load device {device}; the load trace has devices 0..{n_load_devices - 1}",
-            )
-        devices.append(device)
-    return EdgeScenario(
-        topology=topology,
-        placement=placement,
-        server_nodes=placement.server_nodes,
-        server_conditions=conditions,
-        server_load_devices=tuple(devices),
-    )
-
-
-def load_scenario(
-    topology_source: JsonSource,
-    placement_source: JsonSource,
-    known_conditions: Iterable[int] | None = None,
-    n_load_devices: int | None = None,
-) -> EdgeScenario:
-    """Reads a topology and a placement and checks them together (see :func:`build_scenario`)."""
-    return build_scenario(
-        load_topology(topology_source),
-        load_placement(placement_source),
-        known_conditions=known_conditions,
-        n_load_devices=n_load_devices,
+        user_link_bandwidth_bps=user_link_bps,
+        user_link_pr_s=user_link_pr_s,
+        server_link_bandwidth_bps=server_link_bps,
+        server_link_pr_s=server_link_pr_s,
     )

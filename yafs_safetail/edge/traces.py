@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.edge import published as pub
+from yafs_safetail.edge.usecases import USE_CASES
 
 DEFAULT_TRACE_DIR = Path(__file__).resolve().parents[2] / "traces"
 """The repository's ``traces/`` folder (the package is used from a source checkout)."""
@@ -24,9 +25,9 @@ DIRECTIONS = ("uplink", "downlink")
 PROPAGATION_CONDITIONS = tuple(pub.PROPAGATION_RTT_S)
 
 GAMMA_COLUMNS: Mapping[int, tuple[str, ...]] = MappingProxyType(
-    {1: (), 2: ("file_bytes",), 3: ("file_bytes", "duration_s")}
+    {number: use_case.gamma_columns for number, use_case in USE_CASES.items()}
 )
-"""Γ per use case besides n_processes (paper §V-A correlation study; facts "From the paper")."""
+"""Γ per use case besides n_processes (the use cases' definitions, edge/usecases.py)."""
 
 COMPUTE_COLUMNS: Mapping[int, tuple[str, ...]] = MappingProxyType(
     {

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from yafs_safetail.edge import published
+
 KILOBYTE = 1024.0
 
 
@@ -40,6 +42,10 @@ class UseCase:
             generator (vectorised).
         estimate_bytes_fn: eSize(O) from the input sizes (vectorised, deterministic).
         output_bound_fn: an upper bound of Size(O) given the input size.
+        typical_input_bytes: a typical Size(I) (COCO images average about 160 KB; a 5 s clip
+            of 16-bit 16 kHz audio is 160 KB), e.g. to bring the state's sizes to O(1).
+        typical_output_bytes: a typical eSize(O) (a few KB of detections; masks at about 0.4 of
+            the image; the denoised clip at the input's size).
     """
 
     number: int
@@ -53,6 +59,8 @@ class UseCase:
     output_bytes_fn: Callable[[np.ndarray, np.random.Generator], np.ndarray]
     estimate_bytes_fn: Callable[[np.ndarray], np.ndarray]
     output_bound_fn: Callable[[float], float]
+    typical_input_bytes: float
+    typical_output_bytes: float
 
     def draw_output_bytes(self, input_bytes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Actual output sizes of requests with these input sizes."""
@@ -101,6 +109,8 @@ OBJECT_DETECTION = UseCase(
     output_bytes_fn=_detections_bytes,
     estimate_bytes_fn=lambda size: np.full_like(size, DETECTIONS_ESTIMATE_BYTES),
     output_bound_fn=lambda size: DETECTIONS_BYTES_RANGE[1],
+    typical_input_bytes=160e3,
+    typical_output_bytes=4e3,
 )
 
 INSTANCE_SEGMENTATION = UseCase(
@@ -115,6 +125,8 @@ INSTANCE_SEGMENTATION = UseCase(
     output_bytes_fn=_masks_bytes,
     estimate_bytes_fn=lambda size: MASK_ESTIMATE_FRACTION * size,
     output_bound_fn=lambda size: MASK_FRACTION_RANGE[1] * size,
+    typical_input_bytes=160e3,
+    typical_output_bytes=64e3,
 )
 
 NOISE_REMOVAL = UseCase(
@@ -129,9 +141,13 @@ NOISE_REMOVAL = UseCase(
     output_bytes_fn=_same_as_input,
     estimate_bytes_fn=lambda size: size.copy(),
     output_bound_fn=lambda size: size,
+    typical_input_bytes=160e3,
+    typical_output_bytes=160e3,
 )
 
+#: The use cases, keyed by number: the numbers are ``published.USE_CASES``, the one list of them.
 USE_CASES: dict[int, UseCase] = {uc.number: uc for uc in (OBJECT_DETECTION, INSTANCE_SEGMENTATION, NOISE_REMOVAL)}
+assert tuple(USE_CASES) == published.USE_CASES
 
 
 class UnknownUseCaseError(ValueError):

@@ -4,12 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from yafs_safetail.edge.topology_io import (
-    EdgePlacementSpec,
-    JsonSource,
-    ScenarioError,
-    load_placement,
-)
+from yafs_safetail.edge.scenario import EdgePlacementSpec, load_placement
+from yafs_safetail.edge.topology_io import JsonSource, ScenarioError
 from yafs_safetail.yafs.placement import Placement
 
 if TYPE_CHECKING:

@@ -1,4 +1,4 @@
-"""SafeTailSelection: decisions from the learner, Eq. 5 rewards in the records, feedback only when learning."""
+"""SafeTailPolicy: decisions from the learner, Eq. 5 rewards in the records, feedback only when learning."""
 
 from __future__ import annotations
 
@@ -7,15 +7,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from yafs_safetail.edge.model import EdgeModel
-from yafs_safetail.edge.topology_io import load_scenario
+from yafs_safetail.edge.scenario import load_scenario
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world, load_inputs
-from yafs_safetail.experiment import simulate
-from yafs_safetail.policy import StateScales, reward, state_dim, subset_of
-from yafs_safetail.policy.learner import SafeTailLearner
-from yafs_safetail.policy.presets import get_preset
-from yafs_safetail.selection import SafeTailSelection, SelectionError
+from yafs_safetail.methods.policy import PolicyError
+from yafs_safetail.methods.safetail import StateScales, reward, state_dim, subset_of
+from yafs_safetail.methods.safetail.learner import SafeTailLearner
+from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+from yafs_safetail.methods.safetail.presets import get_preset
+from yafs_safetail.sim.hooks import EdgeModel
+from yafs_safetail.sim.runner import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = 160  # > κ = 128: one training round happens while learning
@@ -34,22 +35,15 @@ def new_learner(world) -> SafeTailLearner:
                            get_preset("tuned", 1), seed=3)
 
 
-def run(world, learner, explore, learn) -> SafeTailSelection:
-    built = []
-
-    def make(model):
-        built.append(SafeTailSelection(model, learner, StateScales.for_use_case(1),
-                                       explore=explore, learn=learn))
-        return built[0]
-
-    simulate(world, make)
-    return built[0]
+def run(world, learner, training):
+    policy = SafeTailPolicy(5, np.random.default_rng(0), learner=learner,
+                            scales=StateScales.for_use_case(1), training=training)
+    return policy, simulate(world, policy)
 
 
 def test_learning_run_feeds_every_request_back_with_its_eq5_reward(world):
     learner = new_learner(world)
-    selection = run(world, learner, explore=True, learn=True)
-    records = selection.records
+    policy, records = run(world, learner, training=True)
     assert len(records) == STEPS and learner.n_stored == STEPS
     assert learner.n_training_rounds == 1
     for record in records:
@@ -57,22 +51,22 @@ def test_learning_run_feeds_every_request_back_with_its_eq5_reward(world):
         assert record.reward == expected and record.reward <= 0.0
         # ε is 1 until the first training round (after κ = 128 tuples), then lower.
         assert record.epsilon == 1.0 if record.step < 128 else record.epsilon < 1.0
-    assert selection.decision_time_s > 0 and selection.training_time_s > 0
+    assert policy.decision_time_s > 0 and policy.training_time_s > 0
 
 
 def test_greedy_run_does_not_train_and_follows_the_networks_argmax(world):
     learner = new_learner(world)
     weights = [w.copy() for w in learner.model.get_weights()]
-    selection = run(world, learner, explore=False, learn=False)
+    _, records = run(world, learner, training=False)
     assert learner.n_stored == 0 and learner.n_training_rounds == 0
     for before, after in zip(weights, learner.model.get_weights(), strict=True):
         np.testing.assert_array_equal(before, after)
     # Greedy: every request gets the same subset as the network's argmax for its state.
     model = EdgeModel(world)
     scales = StateScales.for_use_case(1)
-    from yafs_safetail.policy import encode_state
+    from yafs_safetail.methods.safetail import encode_state
 
-    for record in selection.records[:20]:
+    for record in records[:20]:
         state = encode_state(model.observe(record.step), scales)
         assert record.servers == subset_of(learner.act(state, explore=False), 5)
         assert record.epsilon == 0.0
@@ -80,5 +74,6 @@ def test_greedy_run_does_not_train_and_follows_the_networks_argmax(world):
 
 def test_a_policy_for_another_number_of_servers_is_refused(world):
     learner = SafeTailLearner(3, state_dim(3, 0, 2), get_preset("tuned", 1), seed=3)
-    with pytest.raises(SelectionError, match="3 servers"):
-        SafeTailSelection(EdgeModel(world), learner, StateScales.for_use_case(1), explore=False, learn=False)
+    with pytest.raises(PolicyError, match="3 servers"):
+        SafeTailPolicy(5, np.random.default_rng(0), learner=learner,
+                       scales=StateScales.for_use_case(1), training=False)

@@ -4,7 +4,7 @@ The paper never published how its load trace maps to server load, how a server's
 shared, how long the on-device fallback takes, or ν (yafs_safetail.edge.calibration lists each
 parameter with its rule and range). This module fits them, one value per parameter for all three
 use cases, to the **calibration subset only**: use case 1's twelve ratios of SafeTail against the
-x = 1 baselines (``paper_results.CALIBRATION_RATIOS``). Every other published number is held out
+x = 1 baselines (``results.paper.CALIBRATION_RATIOS``). Every other published number is held out
 and reported separately by ``experiments/reproduce_all.py``.
 
 The flow reads top to bottom in :func:`calibrate`:
@@ -48,7 +48,7 @@ from yafs_safetail.edge.calibration import (
     WorldSettings,
     calibrated_settings,
 )
-from yafs_safetail.paper_results import CALIBRATION_RATIOS, PaperRatio
+from yafs_safetail.results.paper import CALIBRATION_RATIOS, PaperRatio
 
 #: Seeds the calibration uses by default: disjoint from the report seeds (0..9).
 DEFAULT_SEEDS = (1000, 1001, 1002)
@@ -132,7 +132,7 @@ def _run_one(preset: str, settings: WorldSettings, seed: int, steps_scale: float
     """One default UC1 experiment in this process; its calibration ratios."""
     import tensorflow as tf
 
-    from yafs_safetail.experiment import ExperimentConfig, run_experiment
+    from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
 
     # Every run builds a new learner and so a new training-round function; TensorFlow warns
     # about the retracing that follows, which is expected here.
@@ -181,7 +181,7 @@ class _Evaluator:
 
     def score_many(self, candidates: Sequence[dict[str, Any]]) -> list[Evaluation]:
         """Score candidates, all seeds of all of them in parallel; cached ones are free."""
-        todo = []
+        todo: list[dict[str, Any]] = []
         for parameters in candidates:
             if self._key(parameters) not in self._cache and len(todo) < self.budget_left():
                 todo.append(parameters)

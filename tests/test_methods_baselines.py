@@ -5,52 +5,32 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from yafs_safetail.edge.model import EdgeModel, edge_application
-from yafs_safetail.edge.topology_io import load_scenario
-from yafs_safetail.edge.traces import load_traces
 from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import build_world, trace_inputs
-from yafs_safetail.placement import EdgePlacement
-from yafs_safetail.population import EdgePopulation
-from yafs_safetail.selection import (
+from yafs_safetail.edge.world import build_world
+from yafs_safetail.methods import (
     MinLoadX,
     MinPropX,
     Oracle,
+    Policy,
+    PolicyError,
     RandX,
-    SelectionError,
-    SubsetSelection,
     make_baseline,
 )
-from yafs_safetail.yafs.core import Sim
-from yafs_safetail.yafs.topology import Topology
+from yafs_safetail.sim.runner import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 N_STEPS = 500
 
 
 @pytest.fixture(scope="module")
-def world():
-    uc = get_use_case(1)
-    traces = load_traces(ROOT / "traces")
-    rough = trace_inputs(traces, uc, lambda g, k: np.zeros(len(k)))
-    median = rough.median_compute_by_k_s
-    inputs = trace_inputs(traces, uc, lambda g, k: median[np.asarray(k) - 1])
-    scenario = load_scenario(ROOT / "topologies/paper_5servers.json", ROOT / "placements/paper_5servers.json")
-    return build_world(scenario, uc, inputs, N_STEPS, seed=21, phase="test", episode_steps=64)
+def world(uc1_median_inputs, paper_scenario):
+    return build_world(paper_scenario, get_use_case(1), uc1_median_inputs, N_STEPS, seed=21,
+                       phase="test", episode_steps=64)
 
 
 def run(world, name, seed=0, n_steps=N_STEPS):
-    model = EdgeModel(world)
-    scenario = world.scenario
-    topology = Topology()
-    topology.load(scenario.topology.data)
-    sim = Sim(topology, link_delay=model, service_model=model, write_results=False)
-    selection = make_baseline(name, model, np.random.default_rng(seed))
-    population = EdgePopulation(scenario.user_node)
-    sim.deploy_app(edge_application(scenario.app_name, scenario.module_name),
-                   EdgePlacement(scenario.placement), population, selection)
-    sim.run(until=population.until_s(n_steps))
-    return selection.records
+    return simulate(world, make_baseline(name, world.n_servers, np.random.default_rng(seed)),
+                    n_requests=n_steps)
 
 
 BASELINES = ["Rand-1", "Rand-2", "Rand-3", "MinLoad-1", "MinLoad-2", "MinLoad-3", "MinProp-1", "MinProp-2", "MinProp-3"]
@@ -110,27 +90,28 @@ def test_records_carry_the_metrics(world):
     assert record.deviation_s == pytest.approx(record.target_s - record.latency_s)
 
 
-def test_bad_baseline_parameters(world):
-    model = EdgeModel(world)
+def test_bad_baseline_parameters():
     rng = np.random.default_rng(0)
-    with pytest.raises(SelectionError, match=r"x must be an integer in 1\.\.5"):
-        RandX(model, 6, rng)
-    with pytest.raises(SelectionError, match="x must be"):
-        MinLoadX(model, 0, rng)
-    with pytest.raises(SelectionError, match="unknown baseline 'Best-2'"):
-        make_baseline("Best-2", model, rng)
-    with pytest.raises(SelectionError, match="unknown baseline 'Oracle-2'"):
-        make_baseline("Oracle-2", model, rng)
-    assert isinstance(make_baseline("MinProp-4", model, rng), MinPropX)
-    assert make_baseline("Oracle", model, rng).name == "Oracle"
-    assert isinstance(Oracle(model), SubsetSelection)
+    with pytest.raises(PolicyError, match=r"x must be an integer in 1\.\.5"):
+        RandX(5, rng, 6)
+    with pytest.raises(PolicyError, match="x must be"):
+        MinLoadX(5, rng, 0)
+    with pytest.raises(PolicyError, match="unknown baseline 'Best-2'"):
+        make_baseline("Best-2", 5, rng)
+    with pytest.raises(PolicyError, match="unknown baseline 'Oracle-2'"):
+        make_baseline("Oracle-2", 5, rng)
+    assert isinstance(make_baseline("MinProp-4", 5, rng), MinPropX)
+    assert make_baseline("Oracle", 5, rng).name == "Oracle"
+    assert isinstance(Oracle(5, rng), Policy)
 
 
-def test_subclass_returning_a_bad_subset_is_caught(world):
-    class Broken(SubsetSelection):
-        def choose_subset(self, step, observation):
-            return (0, 0)
+@pytest.mark.parametrize("bad", [(0, 0), (), (5,), (-1,), ("a",)])
+def test_a_policy_returning_a_bad_subset_is_caught(world, bad):
+    class Broken(Policy):
+        observes = False
 
-    model = EdgeModel(world)
-    with pytest.raises(SelectionError, match="invalid subset"):
-        Broken(model)._checked((0, 0))
+        def choose(self, observation):
+            return bad
+
+    with pytest.raises(PolicyError, match="Broken: (invalid subset|choose\\(\\) must return)"):
+        simulate(world, Broken(world.n_servers, np.random.default_rng(0)))

@@ -15,8 +15,18 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from yafs_safetail.edge import published
+
 PRESET_NAMES = ("paper", "paper-literal", "tuned")
-USE_CASES = (1, 2, 3)
+#: The world each preset runs in (``yafs_safetail.edge.calibration``): ``paper-literal`` keeps the
+#: first release's world so that its results stay as they were.
+PRESET_WORLDS = {"paper": "calibrated", "paper-literal": "landed", "tuned": "calibrated"}
+
+
+def scaled_steps(steps: int, scale: float) -> int:
+    """``steps * scale`` rounded, at least one step (``--steps-scale``)."""
+    return max(1, round(steps * scale))
+USE_CASES = published.USE_CASES
 
 # Table I, per use case.
 _TABLE_I = {

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from yafs_safetail.edge.model import REQUEST_MESSAGE, SINK_MODULE
+from yafs_safetail.sim.hooks import REQUEST_MESSAGE, SINK_MODULE
 from yafs_safetail.yafs.distribution import Distribution, deterministicDistributionStartPoint
 from yafs_safetail.yafs.population import Population
 

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from yafs_safetail.policy.presets import LearnerConfig
+from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 
 def enable_determinism(seed: int) -> None:
@@ -27,7 +28,7 @@ def enable_determinism(seed: int) -> None:
 
 def build_network(
     state_dim: int, n_actions: int, config: LearnerConfig, init_seed: int
-) -> object:
+) -> Any:
     """Build and compile the policy FNN.
 
     ``state_dim`` inputs, one ReLU Dense layer per entry of ``config.hidden_widths``, a softmax
@@ -75,7 +76,7 @@ def build_network(
     return model
 
 
-def make_round_updates(model: object):  # type: ignore[no-untyped-def]
+def make_round_updates(model: Any) -> Any:
     """A function running a whole training round of minibatch Adam updates in one TensorFlow
     graph call.
 
@@ -94,18 +95,18 @@ def make_round_updates(model: object):  # type: ignore[no-untyped-def]
     tf.get_logger().setLevel("ERROR")
     # The same loss build_network compiles the model with.
     loss_fn = keras.losses.CategoricalCrossentropy()
-    optimizer = model.optimizer  # type: ignore[attr-defined]
-    variables = model.trainable_variables  # type: ignore[attr-defined]
+    optimizer = model.optimizer
+    variables = model.trainable_variables
 
     @tf.function(reduce_retracing=True)
-    def run(states, targets, batches):  # type: ignore[no-untyped-def]
+    def run(states, targets, batches):
         total = tf.constant(0.0)
         n_updates = tf.shape(batches)[0]
         for i in tf.range(n_updates):
             x = tf.gather(states, batches[i])
             y = tf.gather(targets, batches[i])
             with tf.GradientTape() as tape:
-                loss = loss_fn(y, model(x, training=True))  # type: ignore[operator]
+                loss = loss_fn(y, model(x, training=True))
             optimizer.apply(tape.gradient(loss, variables), variables)
             total += loss
         return total / tf.cast(n_updates, tf.float32)
@@ -151,9 +152,9 @@ class NumpyForward:
         self._out_kernel, self._out_bias = pairs[-1]
 
     @classmethod
-    def from_model(cls, model: object) -> NumpyForward:
+    def from_model(cls, model: Any) -> NumpyForward:
         """Copy the current weights of a Keras model built by :func:`build_network`."""
-        return cls(model.get_weights())  # type: ignore[attr-defined]
+        return cls(model.get_weights())
 
     def logits(self, states: np.ndarray) -> np.ndarray:
         """Pre-softmax outputs for a state (shape (d,)) or a batch (shape (m, d))."""

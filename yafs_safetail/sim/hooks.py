@@ -125,7 +125,9 @@ class EdgeModel:
         self._own_running = [0] * self.n_servers
         self._step_of_request: dict[Any, int] = {}
         # Per request id: each server index's copy state (None: no copy sent there).
-        self._copies: dict[Any, list[_CopyState | None]] = {}
+        # A request's copies by server; a slot stays None until that server's copy is
+        # dispatched, and the hop and service hooks only ever read dispatched slots.
+        self._copies: dict[Any, list[_CopyState]] = {}
         self._request_paths = [
             [self.user_node, self.access_point_node, node] for node in self.server_nodes
         ]
@@ -205,7 +207,8 @@ class EdgeModel:
 
     def _copy_state(self, request_id: Any, server: int) -> _CopyState | None:
         states = self._copies.get(request_id)
-        state = None if states is None or not 0 <= server < self.n_servers else states[server]
+        state: _CopyState | None = (
+            None if states is None or not 0 <= server < self.n_servers else states[server])
         return None if state is None or state.refused else state
 
     def forget_request(self, request_id: Any) -> None:
@@ -231,7 +234,7 @@ class EdgeModel:
         )
         states = self._copies.get(request_id)
         if states is None:
-            states = self._copies[request_id] = [None] * self.n_servers
+            states = self._copies[request_id] = [None] * self.n_servers  # type: ignore[list-item]
         states[server] = state
         return state
 
@@ -245,10 +248,10 @@ class EdgeModel:
                 return self._copies[message.id][server].output_s
             state = self._copies[message.id][self._server_of_node[dst_node]]
             return state.rtt_s + state.input_s
-        server = self._server_of_node.get(src_node)
-        if server is None or dst_node != self.access_point_node:
+        source_server = self._server_of_node.get(src_node)
+        if source_server is None or dst_node != self.access_point_node:
             raise EdgeModelError(f"hop {src_node!r} -> {dst_node!r} is not on a user-AP-server path")
-        state = self._copies[message.id][server]
+        state = self._copies[message.id][source_server]
         return state.output_s + state.rtt_s
 
     # ------------------------------------------------------------------ ServiceModel hooks

@@ -8,12 +8,21 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from yafs_safetail.policy.actions import MAX_SERVERS, action_of, n_actions, subset_of
-from yafs_safetail.policy.reward import reward, target_vector
-from yafs_safetail.policy.state import StateScales, encode_state, state_dim, state_feature_names
+from yafs_safetail.methods.safetail.learner import target_vector
+from yafs_safetail.methods.safetail.reward import reward
+from yafs_safetail.methods.safetail.spaces import (
+    MAX_SERVERS,
+    StateScales,
+    action_of,
+    encode_state,
+    n_actions,
+    state_dim,
+    state_feature_names,
+    subset_of,
+)
 
 if TYPE_CHECKING:
-    from yafs_safetail.policy.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
 
 __all__ = [
     "MAX_SERVERS",
@@ -29,7 +38,7 @@ __all__ = [
     "target_vector",
 ]
 
-_LAZY = {"SafeTailLearner": "yafs_safetail.policy.learner"}
+_LAZY = {"SafeTailLearner": "yafs_safetail.methods.safetail.learner"}
 
 
 def __getattr__(name: str) -> Any:

@@ -1,97 +1,23 @@
-"""The SafeTail learner: ε-greedy decisions (Eq. 3) and training rounds on target vectors."""
+"""The SafeTail learner: ε-greedy decisions (Eq. 3), the §III target vector a reward becomes, and
+training rounds on them."""
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import re
-import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from yafs_safetail.policy.actions import n_actions as count_actions
-from yafs_safetail.policy.network import (
+from yafs_safetail.methods.safetail.network import (
     NumpyForward,
     build_network,
     enable_determinism,
     make_round_updates,
 )
-from yafs_safetail.policy.presets import LearnerConfig
-from yafs_safetail.policy.reward import target_vector
-
-SIDECAR_SUFFIX = ".json"
-_SIDECAR_VERSION = 1
-
-
-class PolicyFileError(ValueError):
-    """A saved policy (``.keras`` file or its JSON sidecar) is missing or inconsistent."""
-
-
-#: What a saved policy records as its save date: a fixed value, so that the same weights give
-#: a byte-identical ``.keras`` file (Keras writes the wall-clock time otherwise).
-FIXED_SAVE_DATE = "1980-01-01@00:00:00"
-_FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
-
-
-_SHARED_OBJECT_ID = re.compile(r'"shared_object_id": (\d+)')
-
-
-def _renumber_shared_objects(config_text: str) -> str:
-    """Replace Keras's ``shared_object_id`` values (Python object addresses, different in every
-    process) by 1, 2, ... in order of first appearance; equal ids stay equal, which is all
-    Keras uses them for when loading."""
-    numbers: dict[str, int] = {}
-
-    def renumber(match: re.Match[str]) -> str:
-        number = numbers.setdefault(match.group(1), len(numbers) + 1)
-        return f'"shared_object_id": {number}'
-
-    return _SHARED_OBJECT_ID.sub(renumber, config_text)
-
-
-def _make_reproducible(path: Path) -> None:
-    """Rewrite a ``.keras`` archive with a fixed save date and fixed entry timestamps.
-
-    The weights are already deterministic; Keras's ``metadata.json`` date, the object
-    addresses in ``config.json`` and the zip entries' modification times are not.
-    """
-    staging = path.with_name(f".{path.name}.tmp")
-    with zipfile.ZipFile(path) as source, zipfile.ZipFile(staging, "w", zipfile.ZIP_DEFLATED) as target:
-        for entry in source.infolist():
-            data = source.read(entry.filename)
-            if entry.filename == "metadata.json":
-                metadata = json.loads(data)
-                metadata["date_saved"] = FIXED_SAVE_DATE
-                data = json.dumps(metadata).encode("utf-8")
-            elif entry.filename == "config.json":
-                data = _renumber_shared_objects(data.decode("utf-8")).encode("utf-8")
-            info = zipfile.ZipInfo(entry.filename, date_time=_FIXED_ZIP_TIME)
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = entry.external_attr
-            target.writestr(info, data)
-    os.replace(staging, path)
-
-
-def read_policy_sidecar(path: str | Path) -> dict[str, Any]:
-    """The JSON sidecar of a saved policy (n_servers, state_dim, config, ...), read without
-    TensorFlow, so a mismatch can be reported before anything heavy is loaded.
-
-    Raises:
-        PolicyFileError: a missing or malformed sidecar.
-    """
-    sidecar_path = Path(str(path) + SIDECAR_SUFFIX)
-    if not sidecar_path.is_file():
-        raise PolicyFileError(f"{sidecar_path}: file not found (saved with the policy)")
-    try:
-        info = json.loads(sidecar_path.read_text())
-        int(info["n_servers"]), int(info["state_dim"]), LearnerConfig.from_dict(info["config"])
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise PolicyFileError(f"{sidecar_path}: malformed sidecar: {exc}") from exc
-    return info
+from yafs_safetail.methods.safetail.presets import LearnerConfig
+from yafs_safetail.methods.safetail.spaces import n_actions, subset_matrix
 
 
 class SafeTailLearner:
@@ -132,16 +58,16 @@ class SafeTailLearner:
         Args:
             n_servers: n, 1..10.
             state_dim: Length of the encoded state (``state_dim(n, g, d)``).
-            config: A preset (see :func:`yafs_safetail.policy.presets.get_preset`).
+            config: A preset (see :func:`yafs_safetail.methods.safetail.presets.get_preset`).
             seed: The run's seed; also seeds Keras/TensorFlow process-wide (see
-                :func:`yafs_safetail.policy.network.enable_determinism`).
+                :func:`yafs_safetail.methods.safetail.network.enable_determinism`).
             training: False for an evaluation-only learner.
             metadata: Saved alongside the weights.
 
         Raises:
             ValueError: bad ``n_servers``, ``state_dim`` or ``seed``.
         """
-        self.n_actions = count_actions(n_servers)
+        self.n_actions = n_actions(n_servers)
         if isinstance(state_dim, bool) or not isinstance(state_dim, int) or state_dim < 1:
             raise ValueError(f"state_dim must be an integer >= 1, got {state_dim!r}")
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -284,94 +210,73 @@ class SafeTailLearner:
 
     # -- persistence -------------------------------------------------------------------------
 
+    # -- persistence (methods.safetail.persistence) ----------------------------------------
+
     def save(self, path: str | Path) -> Path:
-        """Write the network to ``path`` (must end in ``.keras``) and a JSON sidecar next to it.
+        """Write the network to ``path`` (``.keras``) and a JSON sidecar next to it; see
+        :func:`~yafs_safetail.methods.safetail.persistence.save_learner`."""
+        from yafs_safetail.methods.safetail.persistence import save_learner
 
-        The sidecar (``<path>.json``) holds n, state_dim, the config, ε's round count, the
-        tuple count, the generators' states and ``metadata``. The tuple buffer is not saved:
-        continuing training after ``load`` starts with an empty buffer and drops tuples stored
-        since the last round (for ``paper``, whose rounds use only the κ tuples since the
-        previous round, a policy saved right after a round resumes exactly).
-
-        Returns:
-            The path of the ``.keras`` file.
-        """
-        path = Path(path)
-        if path.suffix != ".keras":
-            raise ValueError(f"{path}: a saved policy must end in .keras")
-        self._model.save(path)
-        _make_reproducible(path)
-        sidecar = {
-            "version": _SIDECAR_VERSION,
-            "n_servers": self.n_servers,
-            "state_dim": self.state_dim,
-            "seed": self._seed,
-            "config": self.config.to_dict(),
-            "n_training_rounds": self._n_rounds,
-            "n_stored": self._n_stored,
-            "epsilon": self.epsilon,
-            "explore_rng": self._explore_rng.bit_generator.state,
-            "shuffle_rng": self._shuffle_rng.bit_generator.state,
-            "metadata": self.metadata,
-        }
-        Path(str(path) + SIDECAR_SUFFIX).write_text(json.dumps(sidecar, indent=2, sort_keys=True))
-        return path
+        return save_learner(self, path)
 
     @classmethod
     def load(cls, path: str | Path, *, training: bool = False) -> SafeTailLearner:
-        """Load a policy written by :meth:`save` (Keras ``safe_mode=True``).
+        """Load a policy written by :meth:`save`; see
+        :func:`~yafs_safetail.methods.safetail.persistence.load_learner`."""
+        from yafs_safetail.methods.safetail.persistence import load_learner
 
-        Args:
-            path: The ``.keras`` file; its sidecar must sit next to it.
-            training: False (default) for evaluation only; True continues training from the
-                saved ε, round count and generator states.
+        return load_learner(path, training=training)
 
-        Raises:
-            PolicyFileError: a missing file, or a sidecar inconsistent with the network.
-        """
-        import keras
 
-        path = Path(path)
-        sidecar_path = Path(str(path) + SIDECAR_SUFFIX)
-        for p in (path, sidecar_path):
-            if not p.is_file():
-                raise PolicyFileError(f"{p}: file not found")
-        try:
-            info = json.loads(sidecar_path.read_text())
-            if info.get("version") != _SIDECAR_VERSION:
-                raise ValueError(f"version must be {_SIDECAR_VERSION}, got {info.get('version')!r}")
-            config = LearnerConfig.from_dict(info["config"])
-            learner = cls(
-                int(info["n_servers"]), int(info["state_dim"]), config, int(info["seed"]),
-                training=training, metadata=info.get("metadata") or {},
-            )
-            n_rounds = int(info["n_training_rounds"])
-            n_stored = int(info["n_stored"])
-            saved_epsilon = float(info["epsilon"])
-            explore_state, shuffle_state = info["explore_rng"], info["shuffle_rng"]
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
-            raise PolicyFileError(f"{sidecar_path}: malformed sidecar: {exc}") from exc
-        try:
-            model = keras.models.load_model(path, safe_mode=True)
-        except (ValueError, OSError) as exc:
-            raise PolicyFileError(f"{path}: cannot load the network: {exc}") from exc
-        expected_in = (None, learner.state_dim)
-        expected_out = (None, learner.n_actions)
-        if tuple(model.input_shape) != expected_in or tuple(model.output_shape) != expected_out:
-            raise PolicyFileError(
-                f"{path}: network maps {model.input_shape} -> {model.output_shape}, sidecar "
-                f"says {expected_in} -> {expected_out}"
-            )
-        learner._model = model
-        learner._round_updates = None
-        learner._forward = NumpyForward.from_model(model)
-        learner._n_rounds = n_rounds
-        learner._n_stored = n_stored
-        if not math.isclose(learner.epsilon, saved_epsilon, abs_tol=1e-12):
-            raise PolicyFileError(f"{sidecar_path}: epsilon does not match the saved counts")
-        # The buffer is not saved: drop the partial batch so rounds stay every κ tuples (with
-        # ε decaying per step, ε then resumes from the last round's value).
-        learner._n_stored = n_stored // config.kappa * config.kappa
-        learner._explore_rng.bit_generator.state = explore_state
-        learner._shuffle_rng.bit_generator.state = shuffle_state
-        return learner
+def target_vector(action_index: int, reward: float, n_servers: int) -> np.ndarray:
+    """The §III training target V^t for one (action, reward) pair.
+
+    * reward = 0: one-hot on ``action_index``.
+    * reward < 0: with N = 2^n - 1, every action whose subset is contained in the chosen
+      subset (the chosen action included) gets max(0, 1/N + reward); the remaining mass
+      1 - Σ(those) is spread equally over all the other actions.
+
+    Edge cases (the paper is silent):
+
+    * The chosen subset is the full set: every action is one of its subsets, so no "other"
+      entry exists. All entries then hold the same value and the remaining mass is spread
+      equally over all of them, i.e. the vector is uniform, 1/N each.
+    * The remaining mass can never be negative: for reward <= 0 each adjusted entry is at most
+      1/N and there are at most N of them. Positive rewards (which Eq. 5 never produces) are
+      rejected instead of being given a meaning.
+
+    Args:
+        action_index: The chosen action, 0..2^n - 2.
+        reward: The Eq. 5 reward of that action, finite and <= 0.
+        n_servers: n, 1..10.
+
+    Returns:
+        float64 array of shape (2^n - 1,), non-negative, summing to 1 (up to float rounding).
+
+    Raises:
+        ValueError: bad ``n_servers`` or ``action_index``, or a positive / non-finite reward.
+    """
+    n_total = n_actions(n_servers)
+    if isinstance(action_index, bool) or not isinstance(action_index, int | np.integer):
+        raise ValueError(f"action_index must be an integer, got {action_index!r}")
+    if not 0 <= action_index < n_total:
+        raise ValueError(
+            f"action_index must be in 0..{n_total - 1} for n_servers={n_servers}, got {action_index}"
+        )
+    if not math.isfinite(reward) or reward > 0.0:
+        raise ValueError(f"reward must be finite and <= 0 (Eq. 5), got {reward!r}")
+    vector = np.empty(n_total, dtype=np.float64)
+    if reward == 0.0:
+        vector.fill(0.0)
+        vector[action_index] = 1.0
+        return vector
+    contained = subset_matrix(n_servers)[action_index]
+    n_contained = int(np.count_nonzero(contained))
+    adjusted = max(0.0, 1.0 / n_total + reward)
+    n_other = n_total - n_contained
+    if n_other == 0:
+        vector.fill(1.0 / n_total)
+    else:
+        vector.fill((1.0 - n_contained * adjusted) / n_other)
+        vector[contained] = adjusted
+    return vector

@@ -20,13 +20,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from yafs_safetail import results
-from yafs_safetail.paper_results import (
+from yafs_safetail.methods.registry import SAFETAIL
+from yafs_safetail.results.paper import (
     PAPER_CLAIMS,
     PAPER_RATIOS,
     PERCENTILE_NAMES,
+    check_claims,
     in_calibration_subset,
 )
+from yafs_safetail.results.report import markdown_table
+from yafs_safetail.results.stats import bootstrap_interval, geometric_interval, speedup
 
 #: A ratio is reproduced when ours is within this relative distance of the paper's.
 TOLERANCE = 0.20
@@ -61,8 +64,8 @@ def scorecard(summaries: Mapping[int, Sequence[pd.DataFrame]]) -> pd.DataFrame:
         runs = summaries.get(ratio.use_case, ())
         if not runs:
             continue
-        values = [results.speedup(s, ratio.method, ratio.reference, ratio.percentile) for s in runs]
-        ours, low, high = results.geometric_interval(values)
+        values = [speedup(s, ratio.method, ratio.reference, ratio.percentile) for s in runs]
+        ours, low, high = geometric_interval(values)
         rows.append({
             "kind": "ratio", "use_case": ratio.use_case,
             "key": _ratio_key(ratio.method, ratio.reference, ratio.percentile),
@@ -76,7 +79,7 @@ def scorecard(summaries: Mapping[int, Sequence[pd.DataFrame]]) -> pd.DataFrame:
         runs = summaries.get(claim.use_case, ())
         if not runs:
             continue
-        verdicts = [results.check_claims(s, claim.use_case).set_index("key").loc[claim.key, "holds"]
+        verdicts = [check_claims(s, claim.use_case).set_index("key").loc[claim.key, "holds"]
                     for s in runs]
         checked = [bool(v) for v in verdicts if v is not None]
         share = float(np.mean(checked)) if checked else math.nan
@@ -89,11 +92,11 @@ def scorecard(summaries: Mapping[int, Sequence[pd.DataFrame]]) -> pd.DataFrame:
         })
     for use_case in sorted(summaries):
         runs = summaries[use_case]
-        values = [float(s.loc[s["method"] == results.SAFETAIL, "mean_access_rate"].iloc[0])
-                  for s in runs if (s["method"] == results.SAFETAIL).any()]
+        values = [float(s.loc[s["method"] == SAFETAIL, "mean_access_rate"].iloc[0])
+                  for s in runs if (s["method"] == SAFETAIL).any()]
         if not values:
             continue
-        ours, low, high = results.bootstrap_interval(values)
+        ours, low, high = bootstrap_interval(values)
         rows.append({
             "kind": "access_rate", "use_case": use_case, "key": "SafeTail mean access rate",
             "statement": f"goal: at most {ACCESS_RATE_GOAL}", "paper": ACCESS_RATE_GOAL,
@@ -154,7 +157,7 @@ def scorecard_markdown(card: pd.DataFrame) -> str:
         "scale]. Calibration = one of the twelve numbers the unpublished world parameters were "
         "fitted to (experiments/calibrate.py); held out = never used to choose or fit anything.",
         "",
-        *results._table(["use case", "ratio", "paper", "ours", "error", f"within ±{TOLERANCE:.0%}",
+        *markdown_table(["use case", "ratio", "paper", "ours", "error", f"within ±{TOLERANCE:.0%}",
                          "subset"], ratio_rows),
         "",
     ]
@@ -164,7 +167,7 @@ def scorecard_markdown(card: pd.DataFrame) -> str:
         for row in card[card["kind"] == "claim"].itertuples(index=False)
     ]
     lines += ["Claims (our reading written into the statement; holds = in most seeds):", "",
-              *results._table(["use case", "the paper says", "holds in seeds", "holds"], claim_rows),
+              *markdown_table(["use case", "the paper says", "holds in seeds", "holds"], claim_rows),
               ""]
     access_rows = [
         [str(row.use_case), _number(row.ours, 3) + ("" if math.isnan(row.ci_low)
@@ -174,7 +177,7 @@ def scorecard_markdown(card: pd.DataFrame) -> str:
     ]
     lines += [f"SafeTail's mean access rate (goal ≤ {ACCESS_RATE_GOAL}; mean over seeds "
               "[95% bootstrap interval]):", "",
-              *results._table(["use case", "access rate", "meets goal"], access_rows)]
+              *markdown_table(["use case", "access rate", "meets goal"], access_rows)]
     return "\n".join(lines) + "\n"
 
 

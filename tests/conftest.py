@@ -1,0 +1,38 @@
+"""Fixtures shared across the suite: the generated traces, use case 1's trace inputs with a
+cheap compute model, and the paper's five-server scenario (each built once per session)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from yafs_safetail.edge.inputs import TraceInputs, trace_inputs
+from yafs_safetail.edge.scenario import (
+    DEFAULT_PLACEMENT,
+    DEFAULT_TOPOLOGY,
+    REPOSITORY,
+    EdgeScenario,
+    load_scenario,
+)
+from yafs_safetail.edge.traces import TraceSet, load_traces
+from yafs_safetail.edge.usecases import get_use_case
+
+
+@pytest.fixture(scope="session")
+def traces() -> TraceSet:
+    return load_traces(REPOSITORY / "traces")
+
+
+@pytest.fixture(scope="session")
+def uc1_median_inputs(traces: TraceSet) -> TraceInputs:
+    """Use case 1's inputs with the trace's median compute time at k as the compute 'model':
+    deterministic and free of TensorFlow, so edge tests stay fast."""
+    use_case = get_use_case(1)
+    rough = trace_inputs(traces, use_case, lambda gamma, k: np.zeros(len(k)))
+    median = rough.median_compute_by_k_s
+    return trace_inputs(traces, use_case, lambda gamma, k: median[np.asarray(k) - 1])
+
+
+@pytest.fixture(scope="session")
+def paper_scenario() -> EdgeScenario:
+    return load_scenario(DEFAULT_TOPOLOGY, DEFAULT_PLACEMENT)

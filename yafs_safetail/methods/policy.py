@@ -1,0 +1,74 @@
+"""What decides where a request's copies go: the :class:`Policy` every method implements.
+
+A policy is a plain object. For each request it gets the state ω^t (an
+:class:`~yafs_safetail.edge.observation.Observation`, the same one the Gymnasium environment
+returns) and answers with the server indices to send one copy each to; when the request has
+completed it gets the :class:`~yafs_safetail.record.RequestRecord` (latency, refusals, the winning
+copy's Eq. 1 parts) as feedback. It never sees the simulator: ``sim.selection.PolicySelection``
+drives any policy inside YAFS, and ``sim.env`` exposes the same loop to Gymnasium agents.
+
+A new policy in a few lines::
+
+    import numpy as np
+    from yafs_safetail.methods import Policy
+
+    class NearestFree(Policy):
+        def choose(self, observation):
+            full = observation.server_active_users >= observation.server_max_load
+            return np.lexsort((observation.server_median_propagation_s, full))[:1]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from yafs_safetail.edge.observation import Observation
+from yafs_safetail.record import RequestRecord
+
+
+class PolicyError(ValueError):
+    """A bad policy, policy parameter or method name (one line naming it)."""
+
+
+class Policy:
+    """Base class of every method: SafeTail, the baselines and a user's own.
+
+    Args:
+        n_servers: n, the number of edge servers (indices 0..n-1 in the topology's order).
+        rng: the method's own generator; draw every random number from it (same seed, same
+            choices; other methods' draws are unaffected).
+
+    Attributes:
+        name: the method's name in results (default: the class name).
+        observes: False for a policy that never reads ω^t: its :meth:`choose` then gets None,
+            which saves building the state for every request.
+    """
+
+    name: str = ""
+    observes: ClassVar[bool] = True
+
+    def __init__(self, n_servers: int, rng: np.random.Generator) -> None:
+        self.n_servers = int(n_servers)
+        self.rng = rng
+        if not self.name:
+            self.name = type(self).__name__
+
+    def choose(self, observation: Observation | None) -> Sequence[int]:
+        """The server indices (0..n-1, non-empty, no repeats) to send this request to.
+
+        Args:
+            observation: ω^t when the request is issued, or None when ``observes`` is False.
+        """
+        raise NotImplementedError(f"{type(self).__name__} must implement choose(observation)")
+
+    def feedback(self, outcome: RequestRecord) -> RequestRecord | None:
+        """Called once per completed request, in completion order (optional).
+
+        Returns:
+            None to keep ``outcome`` as the request's record, or a replacement (e.g. with the
+            ``reward`` a learner computed filled in).
+        """
+        return None

@@ -1,0 +1,146 @@
+"""The one list of method names: how a name becomes a policy, and the order results use.
+
+Names: ``SafeTail``, ``Oracle``, ``Rand-x``, ``MinLoad-x``, ``MinProp-x`` (x = the redundancy
+level), and a user's own policy loaded from ``path/to/file.py:ClassName`` or
+``package.module:ClassName`` (optionally ``NAME=...`` to name it in results).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import re
+import sys
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
+from yafs_safetail.methods.policy import Policy, PolicyError
+
+SAFETAIL = "SafeTail"
+ORACLE = "Oracle"
+#: The redundancy-level families of §V-B, in report order, and their policies.
+BASELINE_FAMILIES: tuple[str, ...] = ("Rand", "MinLoad", "MinProp")
+_FAMILY_POLICIES: dict[str, Callable[..., Policy]] = {"Rand": RandX, "MinLoad": MinLoadX, "MinProp": MinPropX}
+_BASELINE_RE = re.compile(r"^(Rand|MinLoad|MinProp)-(\d+)$")
+
+
+def parse_method(name: str) -> tuple[str, int | None]:
+    """Split a method name into its family and redundancy level.
+
+    Returns:
+        ``(family, x)``: ``("Rand", 2)`` for "Rand-2"; ``(name, None)`` for methods without a
+        level (SafeTail, Oracle, anything else).
+    """
+    match = _BASELINE_RE.match(name)
+    if match:
+        return match.group(1), int(match.group(2))
+    return name, None
+
+
+def method_sort_key(name: str) -> tuple[int, str, int]:
+    """Sort key giving SafeTail, Oracle, Rand-x, MinLoad-x, MinProp-x (x ascending), others."""
+    family, level = parse_method(name)
+    if name == SAFETAIL:
+        return (0, "", 0)
+    if name == ORACLE:
+        return (1, "", 0)
+    if family in BASELINE_FAMILIES and level is not None:
+        return (2 + BASELINE_FAMILIES.index(family), "", level)
+    return (2 + len(BASELINE_FAMILIES), name, 0)
+
+
+def sort_methods(names: Iterable[str]) -> list[str]:
+    """Distinct method names in report order (see :func:`method_sort_key`)."""
+    return sorted(set(names), key=method_sort_key)
+
+
+def baselines_of(names: Iterable[str], family: str | None = None) -> list[str]:
+    """The Rand/MinLoad/MinProp methods among ``names`` (one family if given), report order."""
+    out = []
+    for name in sort_methods(names):
+        fam, level = parse_method(name)
+        if fam in BASELINE_FAMILIES and level is not None and family in (None, fam):
+            out.append(name)
+    return out
+
+
+def baseline_names(redundancy_levels: Sequence[int]) -> list[str]:
+    """Oracle, then Rand-x, MinLoad-x, MinProp-x for every x."""
+    names = [ORACLE]
+    for family in BASELINE_FAMILIES:
+        names += [f"{family}-{x}" for x in redundancy_levels]
+    return names
+
+
+def make_baseline(name: str, n_servers: int, rng: np.random.Generator) -> Policy:
+    """A baseline from its name: ``"Oracle"``, ``"Rand-x"``, ``"MinLoad-x"``, ``"MinProp-x"``.
+
+    Raises:
+        PolicyError: an unknown name or x outside 1..n.
+    """
+    family, level = parse_method(name)
+    if name == ORACLE:
+        return Oracle(n_servers, rng)
+    if level is None:
+        raise PolicyError(
+            f"method: unknown baseline {name!r}; expected Oracle, Rand-x, MinLoad-x or MinProp-x"
+        )
+    return _FAMILY_POLICIES[family](n_servers, rng, level)
+
+
+def _load_class(spec: str) -> type[Policy]:
+    source, _, class_name = spec.rpartition(":")
+    if not source or not class_name:
+        raise PolicyError(f"--method {spec}: expected path/to/file.py:ClassName or module:ClassName")
+    if source.endswith(".py") or "/" in source or "\\" in source:
+        path = Path(source)
+        if not path.is_file():
+            raise PolicyError(f"--method {spec}: {path}: no such file")
+        module_name = f"yafs_safetail_user_policy_{path.stem}"
+        module_spec = importlib.util.spec_from_file_location(module_name, path)
+        if module_spec is None or module_spec.loader is None:
+            raise PolicyError(f"--method {spec}: {path}: not a Python file")
+        module = importlib.util.module_from_spec(module_spec)
+        sys.modules[module_name] = module
+        try:
+            module_spec.loader.exec_module(module)
+        except Exception as error:
+            raise PolicyError(f"--method {spec}: {path} failed to import: "
+                              f"{type(error).__name__}: {error}") from None
+    else:
+        try:
+            module = importlib.import_module(source)
+        except ImportError as error:
+            raise PolicyError(f"--method {spec}: cannot import {source!r}: {error}") from None
+    policy_class = getattr(module, class_name, None)
+    if not (isinstance(policy_class, type) and issubclass(policy_class, Policy)):
+        raise PolicyError(f"--method {spec}: {class_name!r} is not a Policy subclass in {source}")
+    return policy_class
+
+
+class UserMethod:
+    """A user's policy named on the command line: ``[NAME=]path/file.py:Class`` or
+    ``[NAME=]module:Class``. Its class is loaded (and checked) when the spec is parsed."""
+
+    def __init__(self, spec: str) -> None:
+        name, sep, target = spec.partition("=")
+        if not sep or ":" in name or "/" in name:  # no NAME= prefix
+            name, target = "", spec
+        self.spec = spec
+        self.policy_class = _load_class(target)
+        self.name = name or self.policy_class.name or self.policy_class.__name__
+        if self.name in (SAFETAIL, ORACLE) or parse_method(self.name)[1] is not None:
+            raise PolicyError(f"--method {spec}: the name {self.name!r} is taken by a built-in method")
+
+    def make(self, n_servers: int, rng: np.random.Generator) -> Policy:
+        """A fresh instance, named as on the command line."""
+        try:
+            policy = self.policy_class(n_servers, rng)
+        except TypeError as error:
+            raise PolicyError(f"--method {self.spec}: cannot construct {self.policy_class.__name__}"
+                              f"(n_servers, rng): {error}") from None
+        policy.name = self.name
+        return policy

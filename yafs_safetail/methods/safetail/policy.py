@@ -1,0 +1,73 @@
+"""SafeTail (§III) as a policy: the learned FNN picks each request's subset of edge servers."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Any
+
+import numpy as np
+
+from yafs_safetail.edge.observation import Observation
+from yafs_safetail.methods.policy import Policy, PolicyError
+from yafs_safetail.methods.safetail.reward import reward
+from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, subset_of
+from yafs_safetail.record import RequestRecord
+
+
+class SafeTailPolicy(Policy):
+    """ε-greedy choices of a :class:`~yafs_safetail.methods.safetail.learner.SafeTailLearner`.
+
+    :meth:`choose` encodes ω^t, asks the learner for an action (Eq. 3: ε-greedy while
+    ``training``, the argmax otherwise) and maps it to its subset; :meth:`feedback` puts the
+    Eq. 5 reward of L_R against τ into the record and, while ``training``, hands the tuple
+    (ω^t, A^{t+1}, R^{t+1}) to the learner (a training round every κ tuples).
+
+    Args:
+        n_servers: n; must match the learner's.
+        rng: unused (the learner draws from its own generators, seeded with the run's seed);
+            kept for the common policy signature.
+        learner: the learner.
+        scales: the state normalisation (``StateScales.for_use_case``).
+        training: explore and learn (the training phase) or act greedily and frozen (testing).
+
+    Attributes:
+        decision_time_s: wall time spent encoding states and choosing actions.
+        training_time_s: wall time spent in ``learner.observe`` (storing and training).
+    """
+
+    def __init__(self, n_servers: int, rng: np.random.Generator, *, learner: Any,
+                 scales: StateScales, training: bool) -> None:
+        if learner.n_servers != n_servers:
+            raise PolicyError(
+                f"SafeTail: the policy is for {learner.n_servers} servers, the topology has {n_servers}"
+            )
+        self.name = "SafeTail"
+        super().__init__(n_servers, rng)
+        self.learner = learner
+        self.scales = scales
+        self.training = training
+        self.decision_time_s = 0.0
+        self.training_time_s = 0.0
+        self._decisions: dict[int, tuple[np.ndarray, int, float]] = {}
+
+    def choose(self, observation: Observation | None) -> tuple[int, ...]:
+        assert observation is not None
+        started = time.perf_counter()
+        state = encode_state(observation, self.scales)
+        epsilon = self.learner.epsilon if self.training else 0.0
+        action = self.learner.act(state, explore=self.training)
+        self._decisions[observation.step] = (state, action, epsilon)
+        subset = subset_of(action, self.n_servers)
+        self.decision_time_s += time.perf_counter() - started
+        return subset
+
+    def feedback(self, outcome: RequestRecord) -> RequestRecord:
+        state, action, epsilon = self._decisions.pop(outcome.step)
+        value = reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
+                       self.learner.config.delta)
+        if self.training:
+            started = time.perf_counter()
+            self.learner.observe(state, action, value)
+            self.training_time_s += time.perf_counter() - started
+        return dataclasses.replace(outcome, reward=value, epsilon=epsilon)

@@ -1,0 +1,59 @@
+"""Eq. 5: the reward of one request's outcome (the training target it becomes is in ``learner``)."""
+
+from __future__ import annotations
+
+import math
+
+
+def reward(
+    latency_s: float, target_s: float, n_selected: int, n_servers: int, delta: float
+) -> float:
+    """The paper's Eq. 5, all five cases exactly as written.
+
+    With L_R = ``latency_s``, τ = ``target_s``, k = ``n_selected`` = |E_k| and n = ``n_servers``:
+
+    1. L_R = τ                 -> 0
+    2. L_R < τ and k = 1       -> 0
+    3. L_R > τ and k = n       -> 0
+    4. L_R > τ and k < n       -> -δ·e^(n - k)
+    5. L_R < τ and k > 1       -> -δ·e^(L_R - τ)
+
+    Case 1 is exact float equality. In case 5 the exponent is negative, so the penalty lies in
+    (-δ, 0): it is largest (close to -δ) when L_R is just under τ and fades to 0 as the margin
+    grows; it does not depend on how many servers (beyond one) were used. Case 4 is at most
+    -δ·e, so missing the target always costs more than meeting it with redundancy. For n = 1
+    only cases 1-3 can occur (every reward is 0).
+
+    Args:
+        latency_s: L_R, the achieved latency (Eq. 2), seconds, finite and >= 0.
+        target_s: τ, the target latency (Eq. 4), seconds, finite and > 0.
+        n_selected: |E_k|, the number of servers the action chose, 1..n.
+        n_servers: n.
+        delta: δ > 0.
+
+    Returns:
+        The reward, <= 0.
+
+    Raises:
+        ValueError: a non-finite or negative latency, a non-positive target, ``n_selected``
+            outside 1..n, or a non-positive δ.
+    """
+    if not (math.isfinite(latency_s) and latency_s >= 0.0):
+        raise ValueError(f"latency_s must be finite and >= 0, got {latency_s!r}")
+    if not (math.isfinite(target_s) and target_s > 0.0):
+        raise ValueError(f"target_s must be finite and > 0, got {target_s!r}")
+    if n_servers < 1:
+        raise ValueError(f"n_servers must be >= 1, got {n_servers!r}")
+    if not 1 <= n_selected <= n_servers:
+        raise ValueError(f"n_selected must be in 1..{n_servers}, got {n_selected!r}")
+    if not (math.isfinite(delta) and delta > 0.0):
+        raise ValueError(f"delta must be finite and > 0, got {delta!r}")
+    if latency_s == target_s:
+        return 0.0
+    if latency_s < target_s:
+        if n_selected == 1:
+            return 0.0
+        return -delta * math.exp(latency_s - target_s)
+    if n_selected == n_servers:
+        return 0.0
+    return -delta * math.exp(n_servers - n_selected)

@@ -1,0 +1,128 @@
+"""What one request achieved under one method: the one record type from the simulation to the
+``requests.csv`` row.
+
+The simulation (``sim.selection``) builds a :class:`RequestRecord` when a request completes, the
+method's policy sees it as its feedback (``methods.Policy.feedback``), and
+:func:`records_frame` turns a phase's records into the rows of ``requests.csv`` (schema
+:data:`REQUESTS_SCHEMA`, docs/results.md), without any other intermediate form.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+
+PHASES: tuple[str, ...] = ("train", "test")
+
+# requests.csv, in file order. Kinds: "str", "int" (never missing), "float" (may be NaN).
+REQUESTS_SCHEMA: dict[str, str] = {
+    "method": "str",
+    "phase": "str",
+    "episode": "int",
+    "step": "int",
+    "request_id": "int",
+    "latency_s": "float",
+    "target_s": "float",
+    "deviation_s": "float",
+    "n_selected": "int",
+    "access_rate": "float",
+    "servers": "str",
+    "reward": "float",
+    "refused": "int",
+    "fallback": "int",
+    "upload_s": "float",
+    "propagation_s": "float",
+    "download_s": "float",
+    "compute_s": "float",
+}
+REQUESTS_COLUMNS: tuple[str, ...] = tuple(REQUESTS_SCHEMA)
+#: The separator of server indices in the ``servers`` column ("0;2;4").
+SERVERS_SEPARATOR = ";"
+
+
+@dataclass(frozen=True, slots=True)
+class RequestRecord:
+    """What one request achieved under one method.
+
+    Attributes:
+        method: the method's name (e.g. ``"Rand-2"``).
+        step: the world step of the request.
+        request_id: the core's request id.
+        time_emit_s: when the user emitted it.
+        latency_s: L_R (Eq. 2): the first reply's latency, or the fallback latency.
+        target_s: τ (Eq. 4).
+        servers: the chosen server indices, ascending.
+        n_servers: n, the number of edge servers reachable.
+        refused: copies refused (server at its load limit).
+        fallback: True when every copy was refused and the on-device version answered.
+        winner: server index of the first reply, -1 for a fallback.
+        upload_s: Eq. 1 uploading terms (input + output) of the winning copy (NaN if fallback).
+        propagation_s: Eq. 1 propagation terms of the winning copy (NaN if fallback).
+        download_s: Eq. 1 downloading terms of the winning copy (NaN if fallback).
+        compute_s: Eq. 1 compute term of the winning copy (NaN if fallback).
+        reward: the Eq. 5 reward a learning method computed (NaN for methods that do not learn).
+        epsilon: a learning method's exploration rate when it decided (NaN otherwise).
+    """
+
+    method: str
+    step: int
+    request_id: Any
+    time_emit_s: float
+    latency_s: float
+    target_s: float
+    servers: tuple[int, ...]
+    n_servers: int
+    refused: int
+    fallback: bool
+    winner: int
+    upload_s: float
+    propagation_s: float
+    download_s: float
+    compute_s: float
+    reward: float = math.nan
+    epsilon: float = math.nan
+
+    @property
+    def n_selected(self) -> int:
+        return len(self.servers)
+
+    @property
+    def access_rate(self) -> float:
+        """|E_k| / n."""
+        return len(self.servers) / self.n_servers
+
+    @property
+    def deviation_s(self) -> float:
+        """Latency deviation τ - L_R."""
+        return self.target_s - self.latency_s
+
+
+def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: int) -> pd.DataFrame:
+    """The ``requests.csv`` rows of one method and phase (contract columns, then ``epsilon``)."""
+    return pd.DataFrame(
+        {
+            "method": [r.method for r in records],
+            "phase": phase,
+            "episode": [r.step // episode_steps for r in records],
+            "step": [r.step for r in records],
+            "request_id": [r.request_id for r in records],
+            "latency_s": [r.latency_s for r in records],
+            "target_s": [r.target_s for r in records],
+            "deviation_s": [r.deviation_s for r in records],
+            "n_selected": [r.n_selected for r in records],
+            "access_rate": [r.access_rate for r in records],
+            "servers": [SERVERS_SEPARATOR.join(map(str, r.servers)) for r in records],
+            "reward": [r.reward for r in records],
+            "refused": [r.refused for r in records],
+            "fallback": [int(r.fallback) for r in records],
+            "upload_s": [r.upload_s for r in records],
+            "propagation_s": [r.propagation_s for r in records],
+            "download_s": [r.download_s for r in records],
+            "compute_s": [r.compute_s for r in records],
+            "epsilon": [r.epsilon for r in records],
+        }
+    )

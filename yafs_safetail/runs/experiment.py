@@ -1,0 +1,393 @@
+"""One SafeTail experiment: train SafeTail, then test it and every other method on the same requests.
+
+The flow reads top to bottom in :func:`run_experiment`:
+
+1. check the configuration and every input (use case, preset, seed, step scale, redundancy
+   levels, topology and placement, a saved policy, users' policies) before TensorFlow is
+   imported or the output is touched;
+2. draw the two phases' worlds (common random numbers: every method of a phase replays the
+   same requests, trace rows and per-server draws);
+3. start the other methods' test phase in worker processes (``workers - 1`` of them);
+4. build the learner (or load a saved policy) and train SafeTail for the preset's training
+   steps (ε-greedy, a training round every κ tuples), then test it greedily;
+5. collect every method's rows and write the results folder under a temporary name, then
+   rename it into place, so a failed run never leaves half-written results and never destroys
+   an earlier run's folder.
+
+Every method runs its own YAFS-compatible simulation (``sim.runner``) with the edge model as its
+delay hooks and writes the YAFS result CSVs under ``yafs/``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+import shutil
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+import yafs_safetail
+from yafs_safetail import results
+from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.scenario import (
+    DEFAULT_PLACEMENT,
+    DEFAULT_TOPOLOGY,
+    REPOSITORY,
+    EdgeScenario,
+    load_scenario,
+)
+from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
+from yafs_safetail.edge.usecases import UseCase, get_use_case
+from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.methods.registry import SAFETAIL, UserMethod, baseline_names, sort_methods
+from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
+from yafs_safetail.methods.safetail.presets import (
+    PRESET_WORLDS,
+    LearnerConfig,
+    get_preset,
+    scaled_steps,
+)
+from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
+from yafs_safetail.record import records_frame
+from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
+from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
+from yafs_safetail.sim.runner import simulate
+
+POLICY_FILE = "policy.keras"
+YAFS_DIR = "yafs"
+
+
+
+class ExperimentError(ValueError):
+    """A bad experiment setting (one line naming the setting and what is wrong)."""
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """Everything one run depends on; the same config and seed give identical result files.
+
+    Attributes:
+        use_case: 1 object detection, 2 instance segmentation, 3 noise removal.
+        preset: ``"paper"`` (the default: Table I with the readings under which it learns, in
+            the calibrated world), ``"paper-literal"`` (Table I letter for letter, in the
+            landed world) or ``"tuned"`` (our learner settings, in the calibrated world); see
+            :data:`PRESET_WORLDS`.
+        seed: the run's seed (non-negative integer); every random draw derives from it.
+        out_dir: the results folder (replaced atomically when the run succeeds).
+        topology: YAFS topology JSON (user, access point, edge servers).
+        placement: YAFS placement JSON (the service on each edge server, in index order).
+        traces_dir: folder with the trace CSVs and the compute models.
+        steps_scale: fraction of the preset's training and testing steps (for quick runs).
+        redundancy_levels: the x of Rand-x, MinLoad-x and MinProp-x.
+        methods: users' policies compared on the same requests (``--method``).
+        step_interval_s: simulated time between two requests (one load-trace row).
+        write_yafs_csv: write each method's YAFS result CSVs under ``yafs/``.
+        figures: draw Figs. (a)-(g) into ``figures/``.
+        progress: show progress bars on stderr.
+        policy: a saved policy (``.keras``) to evaluate without training.
+        command: the command line, recorded in ``run.json``.
+        workers: processes for the run: the other methods' test phase runs in ``workers - 1``
+            forked processes while this one trains SafeTail (1: everything here). The
+            results do not depend on it.
+        world: the world settings; None: the preset's world (:data:`PRESET_WORLDS`).
+    """
+
+    use_case: int = 1
+    preset: str = "paper"
+    seed: int = 0
+    out_dir: Path = Path("results/uc1")
+    topology: Path = DEFAULT_TOPOLOGY
+    placement: Path = DEFAULT_PLACEMENT
+    traces_dir: Path = DEFAULT_TRACE_DIR
+    steps_scale: float = 1.0
+    redundancy_levels: tuple[int, ...] = (1, 2, 3)
+    methods: tuple[UserMethod, ...] = ()
+    step_interval_s: float = DEFAULT_STEP_INTERVAL_S
+    write_yafs_csv: bool = True
+    figures: bool = True
+    progress: bool = True
+    policy: Path | None = None
+    command: str = ""
+    workers: int = 2
+    world: WorldSettings | None = None
+
+
+@dataclass
+class ExperimentReport:
+    """What a finished run produced and where the time went.
+
+    ``timings_s`` (seconds of wall time): ``setup`` (checks, traces, worlds, learner; includes
+    ``tf_import``), ``simulation`` (this process's simulations without the learner's share),
+    ``decisions`` and ``training`` (SafeTail's learner), ``baselines_in_workers`` (the
+    longest worker's wall time, overlapping the above; 0 with one worker),
+    ``waiting_for_workers`` (after SafeTail's test), ``writing`` (results files and policy),
+    ``plotting`` and ``total``.
+    """
+
+    out_dir: Path
+    summary: pd.DataFrame
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _Inputs:
+    """What the checks produce: everything the run needs, nothing written yet."""
+
+    use_case: UseCase
+    learner_config: LearnerConfig
+    scenario: EdgeScenario
+    train_world: EdgeWorld | None
+    test_world: EdgeWorld
+
+
+def _check(config: ExperimentConfig) -> _Inputs:
+    """Check the configuration and inputs, and draw the worlds (steps 1 and 2)."""
+    use_case = get_use_case(config.use_case)
+    if isinstance(config.seed, bool) or not isinstance(config.seed, int) or config.seed < 0:
+        raise ExperimentError(f"--seed: expected a non-negative integer, got {config.seed!r}")
+    if not (isinstance(config.steps_scale, float | int) and math.isfinite(config.steps_scale)
+            and config.steps_scale > 0):
+        raise ExperimentError(f"--steps-scale: expected a positive number, got {config.steps_scale!r}")
+    base = get_preset(config.preset, use_case.number)
+    learner_config = get_preset(config.preset, use_case.number,
+                                train_steps=scaled_steps(base.train_steps, config.steps_scale))
+    if isinstance(config.workers, bool) or not isinstance(config.workers, int) or config.workers < 1:
+        raise ExperimentError(f"--workers: expected a positive integer, got {config.workers!r}")
+    if not config.redundancy_levels:
+        raise ExperimentError("--redundancy: give at least one level x")
+    names = [m.name for m in config.methods]
+    if len(set(names)) != len(names):
+        raise ExperimentError(f"--method: two methods are named {sorted(n for n in names if names.count(n) > 1)[0]!r}")
+    inputs = load_inputs(use_case, config.traces_dir)
+    scenario = load_scenario(config.topology, config.placement,
+                             known_conditions=inputs.rtt_pools_s.keys(),
+                             n_load_devices=inputs.n_load_devices)
+    for x in config.redundancy_levels:
+        if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= scenario.n_servers:
+            raise ExperimentError(
+                f"--redundancy: x={x!r} must be an integer in 1..{scenario.n_servers} "
+                f"(the servers in {config.topology})"
+            )
+    for method in config.methods:  # a policy that cannot be built fails here, before any run
+        method.make(scenario.n_servers, method_rng(config.seed, method.name))
+    if config.policy is not None:
+        _check_saved_policy(config.policy, use_case, scenario)
+    settings = config.world or world_settings(PRESET_WORLDS[config.preset])
+
+    def world(phase: str, n_steps: int) -> EdgeWorld:
+        return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
+                           episode_steps=learner_config.episode_steps, settings=settings)
+
+    return _Inputs(
+        use_case=use_case,
+        learner_config=learner_config,
+        scenario=scenario,
+        train_world=world("train", learner_config.train_steps) if config.policy is None else None,
+        test_world=world("test", scaled_steps(learner_config.test_steps, config.steps_scale)),
+    )
+
+
+def _check_saved_policy(path: Path, use_case: UseCase, scenario: EdgeScenario) -> None:
+    """A saved policy must exist and fit the topology and use case (read before TensorFlow)."""
+    if not Path(path).is_file():
+        raise ExperimentError(f"--policy {path}: no such file")
+    saved = read_policy_sidecar(path)
+    expected_dim = state_dim(scenario.n_servers, len(use_case.gamma_columns),
+                             len(scenario.user_location))
+    if int(saved["n_servers"]) != scenario.n_servers or int(saved["state_dim"]) != expected_dim:
+        raise ExperimentError(
+            f"--policy {path}: trained for {saved['n_servers']} servers and "
+            f"{saved['state_dim']} state entries; use case {use_case.number} on "
+            f"{scenario.topology.source} has {scenario.n_servers} servers and {expected_dim}"
+        )
+
+
+def _prepare_output(out_dir: Path) -> Path:
+    """A fresh temporary folder beside ``out_dir`` (the run is renamed into place at the end)."""
+    parent = out_dir.resolve().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise OSError(f"--out {out_dir}: cannot create {parent}: {error.strerror}") from None
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ExperimentError(f"--out {out_dir}: exists and is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OSError(f"--out {out_dir}: {parent} is not writable")
+    staging = parent / f".{out_dir.name}.partial-{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    try:
+        staging.mkdir()
+    except OSError as error:
+        raise OSError(f"--out {out_dir}: cannot write in {parent}: {error.strerror}") from None
+    return staging
+
+
+def _publish(staging: Path, out_dir: Path) -> None:
+    """Move the finished run into place; an older run in ``out_dir`` goes only after that."""
+    target = out_dir.resolve()
+    previous = None
+    if target.exists():
+        previous = target.parent / f".{target.name}.previous-{os.getpid()}"
+        shutil.rmtree(previous, ignore_errors=True)
+        os.replace(target, previous)
+    os.replace(staging, target)
+    if previous is not None:
+        shutil.rmtree(previous, ignore_errors=True)
+
+
+def run_experiment(config: ExperimentConfig) -> ExperimentReport:
+    """Run one use case end to end and write its results folder (see docs/results.md).
+
+    Raises:
+        ValueError: a bad setting or input file (one-line message naming it).
+        OSError: the output folder cannot be written.
+    """
+    timings = {"setup": 0.0, "tf_import": 0.0, "simulation": 0.0, "decisions": 0.0, "training": 0.0,
+               "baselines_in_workers": 0.0, "waiting_for_workers": 0.0, "writing": 0.0, "plotting": 0.0}
+    started = time.perf_counter()
+    inputs = _check(config)
+    staging = _prepare_output(config.out_dir)
+    try:
+        summary = _run_into(staging, config, inputs, timings, started)
+        _publish(staging, config.out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return ExperimentReport(out_dir=config.out_dir, summary=summary, timings_s=timings)
+
+
+def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
+              timings: dict[str, float], started: float) -> pd.DataFrame:
+    """Steps 3 to 5 into the staging folder; returns the summary."""
+    yafs_dir = staging / YAFS_DIR if config.write_yafs_csv else None
+    if yafs_dir is not None:
+        yafs_dir.mkdir()
+    prefix = f"UC{inputs.use_case.number}" if config.progress else None
+    job = MethodsJob(
+        names=tuple(baseline_names(config.redundancy_levels)), user_methods=config.methods,
+        seed=config.seed, world=inputs.test_world, step_interval_s=config.step_interval_s,
+        yafs_dir=yafs_dir, episode_steps=inputs.learner_config.episode_steps, progress_prefix=prefix,
+    )
+    workers = start_workers(job, config.workers)
+    try:
+        learner, safetail_frames = _safetail(config, inputs, yafs_dir, timings, started)
+        other_frames = _other_methods(job, workers, timings)
+    finally:
+        for worker in workers:
+            worker.stop()
+    requests = pd.concat([*safetail_frames, *other_frames], ignore_index=True)
+    run = _run_metadata(config, inputs, learner, sort_methods([SAFETAIL, *job.method_names]))
+    t0 = time.perf_counter()
+    summary = results.write_results(staging, requests, run)
+    learner.save(staging / POLICY_FILE)
+    timings["writing"] = time.perf_counter() - t0
+    if config.figures:
+        from yafs_safetail.figures import draw_figures
+
+        t0 = time.perf_counter()
+        draw_figures(staging, requests, run)
+        timings["plotting"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - started
+    return summary
+
+
+def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
+              timings: dict[str, float], started: float) -> tuple[Any, list[pd.DataFrame]]:
+    """Build or load the learner; train SafeTail (unless evaluating a saved policy), then test
+    it greedily. Returns the learner and SafeTail's rows of both phases."""
+    t0 = time.perf_counter()
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+
+    # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
+    # the first time, so it is done here to show up as its own part of the setup.
+    importlib.import_module("keras")
+    timings["tf_import"] = time.perf_counter() - t0
+    scenario, use_case = inputs.scenario, inputs.use_case
+    if config.policy is None:
+        learner = SafeTailLearner(
+            scenario.n_servers,
+            state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
+            inputs.learner_config, config.seed,
+            metadata={"use_case": use_case.number, "topology": str(config.topology)},
+        )
+    else:
+        learner = SafeTailLearner.load(config.policy, training=False)
+    timings["setup"] = time.perf_counter() - started
+    policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,
+                            scales=StateScales.for_use_case(use_case.number), training=True)
+    episode_steps = inputs.learner_config.episode_steps
+
+    def phase(world: EdgeWorld, name: str) -> pd.DataFrame:
+        records = simulate(world, policy, config.step_interval_s,
+                           None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_{name}",
+                           f"UC{use_case.number} {SAFETAIL} {name}" if config.progress else None)
+        return records_frame(records, name, episode_steps)
+
+    t0 = time.perf_counter()
+    frames = []
+    if inputs.train_world is not None:
+        frames.append(phase(inputs.train_world, "train"))
+    policy.training = False
+    frames.append(phase(inputs.test_world, "test"))
+    timings["decisions"] = policy.decision_time_s
+    timings["training"] = policy.training_time_s
+    # Simulation time is reported without the learner's share.
+    timings["simulation"] = time.perf_counter() - t0 - policy.decision_time_s - policy.training_time_s
+    return learner, frames
+
+
+def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, float]) -> list[pd.DataFrame]:
+    """The other methods' test rows, in report order (run here when no worker ran them)."""
+    by_name: dict[str, pd.DataFrame] = {}
+    if workers:
+        t0 = time.perf_counter()
+        for worker in workers:
+            frames, wall_s = worker.result()
+            by_name.update(zip(worker.job.method_names, frames, strict=True))
+            timings["baselines_in_workers"] = max(timings["baselines_in_workers"], wall_s)
+        timings["waiting_for_workers"] = time.perf_counter() - t0
+    else:
+        frames, wall_s = job.run()
+        by_name.update(zip(job.method_names, frames, strict=True))
+        timings["simulation"] += wall_s
+    return [by_name[name] for name in job.method_names]
+
+
+def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
+                  methods: list[str]) -> results.RunMetadata:
+    test_world = inputs.test_world
+    topology = Path(config.topology)
+    return results.RunMetadata(
+        use_case=inputs.use_case.number,
+        use_case_name=inputs.use_case.description,
+        preset=learner.config.name,
+        seed=config.seed,
+        n_servers=inputs.scenario.n_servers,
+        beta=learner.config.beta,
+        train_steps=0 if inputs.train_world is None else inputs.learner_config.train_steps,
+        test_steps=test_world.n_steps,
+        topology=os.path.relpath(topology, REPOSITORY)
+        if topology.resolve().is_relative_to(REPOSITORY) else str(topology),
+        methods=methods,
+        package_version=yafs_safetail.__version__,
+        command=config.command,
+        extra={
+            "steps_scale": config.steps_scale,
+            "step_interval_s": config.step_interval_s,
+            "episode_steps": inputs.learner_config.episode_steps,
+            "fallback_latency_s": test_world.fallback_latency_s,
+            "nu": test_world.nu,
+            "world": test_world.settings.to_dict(),
+            "learner": learner.config.to_dict(),
+            "training_rounds": learner.n_training_rounds,
+            "final_epsilon": learner.epsilon,
+            "policy_source": str(config.policy) if config.policy else POLICY_FILE,
+        },
+    )

@@ -1,0 +1,143 @@
+"""The baselines' test phase in forked worker processes while the main process trains SafeTail.
+
+A method's simulation depends only on the world and its own seeded generator, so running the
+baselines in other processes gives the same rows and files as running everything in one.
+Forking (rather than spawning) shares the worlds without pickling them and starts at once; a
+worker never touches TensorFlow.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import multiprocessing
+import time
+import zlib
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from yafs_safetail.edge.world import EdgeWorld
+from yafs_safetail.methods.policy import Policy
+from yafs_safetail.methods.registry import UserMethod, make_baseline
+from yafs_safetail.record import records_frame
+from yafs_safetail.sim.runner import simulate
+
+
+def method_rng(seed: int, method: str) -> np.random.Generator:
+    """A method's own generator (Rand draws, MinLoad tie-breaks), independent per method."""
+    return np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(method.encode())]))
+
+
+@dataclass(frozen=True)
+class MethodsJob:
+    """The test phase of some non-learning methods: everything a worker needs (inherited by fork).
+
+    Attributes:
+        names: built-in method names, run in this order.
+        user_methods: users' policies (``--method``), run after the built-in ones.
+        seed: the run's seed (each method's generator derives from it and the method's name).
+        world: the test phase's world.
+        step_interval_s: time between requests.
+        yafs_dir: where the YAFS CSVs go (None: not written).
+        episode_steps: α_s, for the rows' episode numbers.
+        progress_prefix: label prefix of progress bars (None: silent).
+    """
+
+    names: tuple[str, ...]
+    user_methods: tuple[UserMethod, ...]
+    seed: int
+    world: EdgeWorld
+    step_interval_s: float
+    yafs_dir: Path | None
+    episode_steps: int
+    progress_prefix: str | None
+
+    def policies(self) -> list[Policy]:
+        n = self.world.n_servers
+        made = [make_baseline(name, n, method_rng(self.seed, name)) for name in self.names]
+        return made + [m.make(n, method_rng(self.seed, m.name)) for m in self.user_methods]
+
+    def run(self) -> tuple[list[pd.DataFrame], float]:
+        """Simulate each method; its request rows (in order) and the wall time."""
+        started = time.perf_counter()
+        frames = []
+        for policy in self.policies():
+            records = simulate(
+                self.world, policy, self.step_interval_s,
+                None if self.yafs_dir is None else self.yafs_dir / f"{policy.name}_test",
+                None if self.progress_prefix is None else f"{self.progress_prefix} {policy.name} test",
+            )
+            frames.append(records_frame(records, "test", self.episode_steps))
+        return frames, time.perf_counter() - started
+
+    @property
+    def method_names(self) -> list[str]:
+        return [*self.names, *(m.name for m in self.user_methods)]
+
+
+def _worker_main(job: MethodsJob, sender: Connection) -> None:
+    outcome: tuple[bool, object]
+    try:
+        outcome = (True, job.run())
+    except BaseException as error:  # every failure goes back to the parent
+        outcome = (False, error)
+    try:
+        sender.send(outcome)
+    except Exception as error:  # e.g. an exception that does not pickle
+        sender.send((False, RuntimeError(f"baseline worker: {type(error).__name__}: {error}")))
+    sender.close()
+
+
+class MethodsWorker:
+    """A forked process running a :class:`MethodsJob`."""
+
+    def __init__(self, job: MethodsJob) -> None:
+        self.job = job
+        context = multiprocessing.get_context("fork")
+        self._receiver, sender = context.Pipe(duplex=False)
+        self._process = context.Process(target=_worker_main, args=(job, sender), daemon=True,
+                                         name="yafs-safetail-baselines")
+        self._process.start()
+        sender.close()
+
+    def result(self) -> tuple[list[pd.DataFrame], float]:
+        """Wait for the job's result; re-raises its exception."""
+        try:
+            ok, payload = self._receiver.recv()
+        except EOFError:
+            self._process.join()
+            raise RuntimeError(
+                f"baseline worker ended without a result (exit code {self._process.exitcode})"
+            ) from None
+        self._process.join()
+        if not ok:
+            raise payload
+        return payload
+
+    def stop(self) -> None:
+        """End the process if it is still running (the run failed) and free the pipe."""
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join()
+        self._receiver.close()
+
+
+def start_workers(job: MethodsJob, workers: int) -> list[MethodsWorker]:
+    """Forks ``workers - 1`` processes (at most one per method), each taking every
+    (workers - 1)-th method; none with one worker, where ``fork`` does not exist, or inside a
+    daemonic process (e.g. a ``multiprocessing.Pool`` worker, which may not have children)."""
+    n_methods = len(job.names) + len(job.user_methods)
+    n_processes = min(workers - 1, n_methods)
+    if (n_processes < 1 or "fork" not in multiprocessing.get_all_start_methods()
+            or multiprocessing.current_process().daemon):
+        return []
+    # Progress bars stay with this process: bars from several processes garble a terminal.
+    return [
+        MethodsWorker(dataclasses.replace(job, names=job.names[i::n_processes],
+                                          user_methods=job.user_methods[i::n_processes],
+                                          progress_prefix=None))
+        for i in range(n_processes)
+    ]

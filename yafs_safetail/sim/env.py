@@ -1,0 +1,243 @@
+"""The Gymnasium environment: the experiment's simulation, one request per ``step``.
+
+    import gymnasium, yafs_safetail
+    env = gymnasium.make("yafs_safetail/SafeTail-v0", use_case=1)
+    observation, info = env.reset(seed=0)
+    observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+It is the same simulation ``run_usecase.py`` runs (``sim.runner.deploy``: the YAFS core, the edge
+model's delay hooks, the policy selection), driven from outside: ``reset(seed=s)`` draws the
+world ``run_usecase.py --seed s`` trains in (or tests in, ``phase="test"``), and each ``step``
+sends one request to the chosen subset and runs the simulation until that request has its
+first reply. SafeTail trained through this environment gives the same records and weights as
+``run_usecase.py`` (tested).
+
+Spaces:
+
+- **action**: ``Discrete(2^n - 1)``, the index of a non-empty subset of the n servers, in the
+  order SafeTail's network outputs them (``methods.safetail.spaces.subset_of``). Every action
+  is a valid subset, so no rule for an empty choice is needed, and agents see exactly the
+  choices SafeTail's softmax ranks; n <= 10 keeps it at most 1,023 actions.
+- **observation** (``observation="dict"``, the default): ω^t of Definition 1, one entry per
+  :class:`~yafs_safetail.edge.observation.Observation` field, float32, per-server arrays of
+  shape (n,) and scalars of shape (1,): ``server_uplink_bps``, ``server_downlink_bps``,
+  ``server_memory_util``, ``server_cpu_util``, ``server_active_users``,
+  ``server_median_propagation_s``, ``server_max_load``, ``input_bytes``, ``est_output_bytes``,
+  ``gamma`` (absent when the use case has no Γ, UC1), ``user_location``, ``user_uplink_bps``,
+  ``user_downlink_bps``. ``observation="vector"`` gives SafeTail's scaled state vector
+  (``encode_state``) instead, ready for an MLP.
+- **reward**: Eq. 5 with the preset's δ (always <= 0).
+- **episode**: α_s requests (the world's background load is drawn per episode of α_s steps);
+  the last step of an episode returns ``truncated=True`` (a time limit: the task itself never
+  terminates, so ``terminated`` is always False). ``reset()`` without a seed continues with
+  the world's next request; a world used up (its ``n_steps`` requests) is followed by a fresh
+  one seeded from the environment's generator.
+
+``info`` carries ``observation`` (the :class:`Observation`, for policies written against it)
+and, after a step, ``record``: the request's :class:`~yafs_safetail.record.RequestRecord`
+(latency, target, refusals, the winning copy's Eq. 1 parts, the reward).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from yafs_safetail.edge.calibration import world_settings
+from yafs_safetail.edge.observation import Observation
+from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, load_scenario
+from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
+from yafs_safetail.edge.usecases import get_use_case
+from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.methods.policy import Policy
+from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, get_preset, scaled_steps
+from yafs_safetail.methods.safetail.reward import reward
+from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, n_actions, subset_of
+from yafs_safetail.record import RequestRecord
+from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
+from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
+
+PHASES = ("train", "test")
+OBSERVATION_KINDS = ("dict", "vector")
+_PER_SERVER = ("server_uplink_bps", "server_downlink_bps", "server_memory_util", "server_cpu_util",
+               "server_active_users", "server_median_propagation_s", "server_max_load")
+_SCALARS = ("input_bytes", "est_output_bytes", "user_uplink_bps", "user_downlink_bps")
+_FRACTIONS = ("server_memory_util", "server_cpu_util")
+
+
+class _AgentsChoice(Policy):
+    """The environment's side of the policy selection: the subset the agent gave to ``step``."""
+
+    observes = False  # the environment builds ω^t itself, before the request is issued
+
+    def __init__(self, n_servers: int, rng: np.random.Generator) -> None:
+        super().__init__(n_servers, rng)
+        self.subset: tuple[int, ...] | None = None
+        self.record: RequestRecord | None = None
+
+    def choose(self, observation: Observation | None) -> tuple[int, ...]:
+        subset, self.subset = self.subset, None
+        if subset is None:
+            raise SimulationError("a request was issued before the agent chose its subset")
+        return subset
+
+    def feedback(self, outcome: RequestRecord) -> None:
+        self.record = outcome
+
+
+class SafeTailEnv(gymnasium.Env[Any, Any]):
+    """SafeTail's decision problem as a Gymnasium environment (see the module docstring).
+
+    Args:
+        use_case: 1 object detection, 2 instance segmentation, 3 noise removal.
+        preset: the preset whose world, δ, α_s and step budget apply (as ``run_usecase.py``).
+        phase: ``"train"`` (the preset's training budget and world) or ``"test"``.
+        steps_scale: fraction of the phase's steps (``run_usecase.py --steps-scale``).
+        topology: YAFS topology JSON.
+        placement: YAFS placement JSON (default: the topology's file name under placements/).
+        traces_dir: the trace CSVs and compute models.
+        step_interval_s: simulated time between two requests.
+        observation: ``"dict"`` (ω^t field by field) or ``"vector"`` (SafeTail's scaled state).
+        results_path: YAFS result CSVs prefix (None: none written).
+        method_name: the ``method`` of the records in ``info["record"]``.
+
+    Raises:
+        ValueError: a bad argument or input file (one line naming it).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(
+        self,
+        use_case: int = 1,
+        preset: str = "paper",
+        phase: str = "train",
+        steps_scale: float = 1.0,
+        topology: str | Path = DEFAULT_TOPOLOGY,
+        placement: str | Path | None = None,
+        traces_dir: str | Path = DEFAULT_TRACE_DIR,
+        step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
+        observation: str = "dict",
+        results_path: str | Path | None = None,
+        method_name: str = "agent",
+    ) -> None:
+        if phase not in PHASES:
+            raise ValueError(f"phase: expected one of {PHASES}, got {phase!r}")
+        if observation not in OBSERVATION_KINDS:
+            raise ValueError(f"observation: expected one of {OBSERVATION_KINDS}, got {observation!r}")
+        if not (isinstance(steps_scale, float | int) and math.isfinite(steps_scale) and steps_scale > 0):
+            raise ValueError(f"steps_scale: expected a positive number, got {steps_scale!r}")
+        self.use_case = get_use_case(use_case)
+        base = get_preset(preset, self.use_case.number)
+        self.learner_config = get_preset(preset, self.use_case.number,
+                                         train_steps=scaled_steps(base.train_steps, steps_scale))
+        self.phase = phase
+        self.n_steps = (self.learner_config.train_steps if phase == "train"
+                        else scaled_steps(base.test_steps, steps_scale))
+        self.episode_steps = self.learner_config.episode_steps
+        self.delta = self.learner_config.delta
+        self.step_interval_s = float(step_interval_s)
+        self.results_path = None if results_path is None else Path(results_path)
+        if self.results_path is not None:
+            self.results_path.parent.mkdir(parents=True, exist_ok=True)
+        self._inputs = load_inputs(self.use_case, Path(traces_dir))
+        topology = Path(topology)
+        if placement is None:
+            placement = (DEFAULT_PLACEMENT if topology == DEFAULT_TOPOLOGY
+                         else DEFAULT_PLACEMENT.parent / topology.name)
+        self.scenario = load_scenario(topology, Path(placement),
+                                      known_conditions=self._inputs.rtt_pools_s.keys(),
+                                      n_load_devices=self._inputs.n_load_devices)
+        self._settings = world_settings(PRESET_WORLDS[preset])
+        self.n_servers = n = self.scenario.n_servers
+        self.action_space = spaces.Discrete(n_actions(n))
+        self._kind = observation
+        self._scales = StateScales.for_use_case(self.use_case.number)
+        n_gamma, n_location = len(self.use_case.gamma_columns), len(self.scenario.user_location)
+        if observation == "vector":
+            from yafs_safetail.methods.safetail.spaces import state_dim
+
+            dim = state_dim(n, n_gamma, n_location)
+            self.observation_space = spaces.Box(-np.inf, np.inf, (dim,), np.float32)
+        else:
+            fields: dict[str, spaces.Space[Any]] = {}
+            for name in _PER_SERVER:
+                fields[name] = spaces.Box(0.0, 1.0 if name in _FRACTIONS else np.inf, (n,), np.float32)
+            for name in _SCALARS:
+                fields[name] = spaces.Box(0.0, np.inf, (1,), np.float32)
+            if n_gamma:
+                fields["gamma"] = spaces.Box(0.0, np.inf, (n_gamma,), np.float32)
+            fields["user_location"] = spaces.Box(-np.inf, np.inf, (n_location,), np.float32)
+            self.observation_space = spaces.Dict(fields)
+        self.world: EdgeWorld | None = None
+        self._simulation: Simulation | None = None
+        self._agent = _AgentsChoice(n, np.random.default_rng(0))
+        self._agent.name = method_name
+        self._step = 0
+        self._observation: Observation | None = None
+        self._episode_over = True
+
+    # ----------------------------------------------------------------------------- the loop
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        super().reset(seed=seed)
+        if seed is not None or self.world is None or self._step >= self.world.n_steps:
+            world_seed = seed if seed is not None else int(self.np_random.integers(2**31 - 1))
+            self._start_world(world_seed)
+        self._episode_over = False
+        assert self.world is not None
+        self._observation = self._observe()
+        return self._encode(self._observation), {"observation": self._observation}
+
+    def step(self, action: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        if self._episode_over or self._simulation is None or self.world is None:
+            raise RuntimeError("the episode is over: call reset() before step()")
+        if not self.action_space.contains(action):
+            raise ValueError(f"action: expected an integer in 0..{n_actions(self.n_servers) - 1}, got {action!r}")
+        subset = subset_of(int(action), self.n_servers)
+        self._agent.subset, self._agent.record = subset, None
+        self._simulation.run_until_request(self._step + 1)
+        record = self._agent.record
+        if record is None:
+            raise SimulationError(
+                f"request {self._step} did not complete within step_interval_s={self.step_interval_s}"
+            )
+        value = reward(record.latency_s, record.target_s, len(subset), self.n_servers, self.delta)
+        record = dataclasses.replace(record, reward=value)
+        self._step += 1
+        truncated = self._step % self.episode_steps == 0 or self._step >= self.world.n_steps
+        self._episode_over = truncated
+        if self._step < self.world.n_steps:
+            self._observation = self._observe()
+        assert self._observation is not None
+        info = {"observation": self._observation, "record": record}
+        return self._encode(self._observation), value, False, truncated, info
+
+    # ----------------------------------------------------------------------------- helpers
+
+    def _start_world(self, seed: int) -> None:
+        self.world = build_world(self.scenario, self.use_case, self._inputs, self.n_steps, seed=seed,
+                                 phase=self.phase, episode_steps=self.episode_steps,
+                                 settings=self._settings)
+        self._simulation = deploy(self.world, self._agent, self.step_interval_s, self.results_path)
+        self._step = 0
+
+    def _observe(self) -> Observation:
+        """ω^t of the next request, read when the simulation has run up to its issue time."""
+        assert self._simulation is not None
+        self._simulation.run_until_request(self._step)
+        return self._simulation.edge.observe(self._step)
+
+    def _encode(self, observation: Observation) -> Any:
+        if self._kind == "vector":
+            return encode_state(observation, self._scales)
+        encoded = {}
+        for name in self.observation_space.keys():  # type: ignore[attr-defined]
+            encoded[name] = np.asarray(getattr(observation, name), dtype=np.float32).reshape(-1)
+        return encoded
