@@ -34,6 +34,7 @@ from yafs_safetail.figures import FIGURES_DIR
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.results import fidelity
 from yafs_safetail.runs.experiment import ExperimentConfig, ExperimentError, run_experiment
+from yafs_safetail.runs.output import refuse_protected
 
 FIGURE_STEMS = (
     ("a", "fig_a_latency_comparison", "latency comparison with target and baselines"),
@@ -199,12 +200,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("results/reproduce"),
                         help="output folder (default results/reproduce)")
     parser.add_argument("--no-figures", action="store_true", help="skip the per-run figures")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace earlier run folders and reports in --out")
     args = parser.parse_args(argv)
     bad = [uc for uc in args.uc if uc not in USE_CASES]
     if bad:
         raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")
 
     command = shlex.join(["python", "experiments/reproduce_all.py", *(sys.argv[1:] if argv is None else argv)])
+    refuse_protected(args.out)
     args.out.mkdir(parents=True, exist_ok=True)
     sections: list[str] = []
     speedups = []
@@ -218,7 +222,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 run_experiment(ExperimentConfig(
                     use_case=use_case, preset=preset, seed=seed, out_dir=folder,
                     steps_scale=args.steps_scale, figures=not args.no_figures,
-                    progress=sys.stderr.isatty(), command=command,
+                    progress=sys.stderr.isatty(), command=command, overwrite=args.overwrite,
                 ))
                 folders.append(folder)
             sections += _section(use_case, preset, folders, args.out)

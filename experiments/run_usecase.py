@@ -88,7 +88,10 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                         help="learner preset (default: paper = Table I verbatim)")
     parser.add_argument("--seed", type=_seed, default=0, help="the run's seed (default 0)")
     parser.add_argument("--out", type=Path, default=None,
-                        help="results folder (default results/uc<N>-<preset>-s<seed>)")
+                        help="results folder (default results/uc<N>-<preset>-s<seed>, plus "
+                             "-x<scale> with --steps-scale); never replaced unless --overwrite")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier results folder at --out (only a results folder)")
     parser.add_argument("--steps-scale", type=_positive_float, default=1.0,
                         help="fraction of the preset's training and testing steps (default 1)")
     parser.add_argument("--redundancy", type=_levels, default=(1, 2, 3),
@@ -114,7 +117,8 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     if placement is None:
         placement = (DEFAULT_PLACEMENT if args.topology == DEFAULT_TOPOLOGY
                      else DEFAULT_PLACEMENT.parent / args.topology.name)
-    out = args.out or Path("results") / f"uc{args.uc}-{args.preset}-s{args.seed}"
+    scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
+    out = args.out or Path("results") / f"uc{args.uc}-{args.preset}-s{args.seed}{scale}"
     command = shlex.join(["python", "experiments/run_usecase.py", *(sys.argv[1:] if argv is None else argv)])
     return ExperimentConfig(
         use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=out,
@@ -123,6 +127,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         methods=tuple(UserMethod(spec) for spec in args.method),
         write_yafs_csv=not args.no_yafs_csv, figures=not args.no_figures,
         progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
+        overwrite=args.overwrite,
     )
 
 

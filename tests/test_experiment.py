@@ -150,6 +150,8 @@ def test_a_failing_baseline_worker_fails_the_run_and_writes_nothing(tmp_path, mo
     out = tmp_path / "run"
     out.mkdir()
     (out / "summary.md").write_text("an earlier run\n")
+    (out / "requests.csv").write_text("method,phase\n")
+    (out / "run.json").write_text('{"package_version": "0.1.0"}\n')
 
     def broken(name, edge, rng):
         raise ExperimentError(f"{name}: broken on purpose")
@@ -157,9 +159,9 @@ def test_a_failing_baseline_worker_fails_the_run_and_writes_nothing(tmp_path, mo
     # Forked workers inherit the patched module.
     monkeypatch.setattr("yafs_safetail.runs.workers.make_baseline", broken)
     with pytest.raises(ExperimentError, match="Oracle: broken on purpose"):
-        run_experiment(tiny_config(out, workers=2))
+        run_experiment(tiny_config(out, workers=2, overwrite=True))
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
-    assert [p.name for p in out.iterdir()] == ["summary.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["requests.csv", "run.json", "summary.md"]
 
 
 @pytest.mark.parametrize("servers", [3, 7])

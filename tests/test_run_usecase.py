@@ -37,6 +37,7 @@ def earlier_results(folder: Path) -> dict[str, bytes]:
     """Make ``folder`` look like an earlier run's results; returns what must survive."""
     folder.mkdir(parents=True)
     (folder / "requests.csv").write_text("method,phase\nSafeTail,test\n")
+    (folder / "run.json").write_text('{"package_version": "0.1.0"}\n')
     (folder / "summary.md").write_text("# an earlier run\n")
     return snapshot(folder)
 
@@ -154,7 +155,7 @@ def test_users_methods_join_the_comparison_on_the_same_requests(uc1_run, tmp_pat
 def test_policy_for_another_number_of_servers_is_refused(uc1_run, tmp_path):
     out = tmp_path / "eval"
     kept = earlier_results(out)
-    done = run_script("--uc", "1", "--policy", uc1_run / POLICY_FILE, "--out", out,
+    done = run_script("--overwrite", "--uc", "1", "--policy", uc1_run / POLICY_FILE, "--out", out,
                       "--topology", REPOSITORY / "topologies" / "3servers.json", *TINY)
     # Checked from the policy's sidecar before TensorFlow loads: exactly one line.
     assert done.returncode == 2 and "Traceback" not in done.stderr
@@ -219,7 +220,7 @@ def test_help():
 def test_bad_arguments_give_one_line_and_keep_earlier_results(tmp_path, args, fragments):
     out = tmp_path / "earlier"
     kept = earlier_results(out)
-    done = run_script(*args, "--out", out)
+    done = run_script("--overwrite", *args, "--out", out)
     assert_one_error_line(done, *fragments)
     assert snapshot(out) == kept
     assert [p.name for p in tmp_path.iterdir()] == ["earlier"]
@@ -230,7 +231,7 @@ def test_topology_that_is_not_json(tmp_path):
     topology.write_text("{ not json")
     out = tmp_path / "earlier"
     kept = earlier_results(out)
-    done = run_script("--uc", "1", "--topology", topology,
+    done = run_script("--overwrite", "--uc", "1", "--topology", topology,
                       "--placement", REPOSITORY / "placements" / "paper_5servers.json", "--out", out)
     assert_one_error_line(done, "broken.json")
     assert snapshot(out) == kept
@@ -246,7 +247,7 @@ def test_topology_with_an_unknown_condition(tmp_path):
     topology.write_text(json.dumps(data))
     out = tmp_path / "earlier"
     kept = earlier_results(out)
-    done = run_script("--uc", "1", "--topology", topology,
+    done = run_script("--overwrite", "--uc", "1", "--topology", topology,
                       "--placement", REPOSITORY / "placements" / "paper_5servers.json", "--out", out)
     assert_one_error_line(done, "far.json", "condition", "9")
     assert snapshot(out) == kept
@@ -288,7 +289,7 @@ def test_output_under_a_read_only_folder(tmp_path):
     kept = earlier_results(locked / "run")
     locked.chmod(0o555)
     try:
-        done = run_script("--uc", "1", "--out", locked / "run", *TINY)
+        done = run_script("--overwrite", "--uc", "1", "--out", locked / "run", *TINY)
     finally:
         locked.chmod(0o755)
     assert_one_error_line(done, "--out", "not writable")

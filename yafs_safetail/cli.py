@@ -9,10 +9,23 @@ that line. Set ``YAFS_SAFETAIL_DEBUG=1`` to see the traceback instead (for bug r
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
+from types import FrameType
 
 EXIT_BAD_INPUT = 2
+EXIT_TERMINATED = 128 + signal.SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that every ``finally`` runs: workers stop and
+    temporary folders go, exactly as for Ctrl-C."""
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise Terminated()
 
 
 def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[str] | None = None) -> int:
@@ -25,6 +38,8 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     Returns:
         The process exit code.
     """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         code = main(argv)
     except (ValueError, OSError) as error:
@@ -33,6 +48,9 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
         message = " ".join(str(error).split()) or type(error).__name__
         print(f"error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Terminated:
+        print("error: terminated; no partial results were kept", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("error: interrupted; no partial results were kept", file=sys.stderr)
         return 130

@@ -23,7 +23,6 @@ from __future__ import annotations
 import importlib
 import math
 import os
-import shutil
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -55,13 +54,13 @@ from yafs_safetail.methods.safetail.presets import (
 )
 from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
 from yafs_safetail.record import records_frame
+from yafs_safetail.runs.output import StagedOutput, check_target
 from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.runner import simulate
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
-
 
 
 class ExperimentError(ValueError):
@@ -79,7 +78,8 @@ class ExperimentConfig:
             landed world) or ``"tuned"`` (our learner settings, in the calibrated world); see
             :data:`PRESET_WORLDS`.
         seed: the run's seed (non-negative integer); every random draw derives from it.
-        out_dir: the results folder (replaced atomically when the run succeeds).
+        out_dir: the results folder, written only when the run succeeds (runs.output: an
+            existing folder must be an earlier results folder, replaced only with ``overwrite``).
         topology: YAFS topology JSON (user, access point, edge servers).
         placement: YAFS placement JSON (the service on each edge server, in index order).
         traces_dir: folder with the trace CSVs and the compute models.
@@ -96,6 +96,7 @@ class ExperimentConfig:
             forked processes while this one trains SafeTail (1: everything here). The
             results do not depend on it.
         world: the world settings; None: the preset's world (:data:`PRESET_WORLDS`).
+        overwrite: replace an earlier results folder at ``out_dir`` (``--overwrite``).
     """
 
     use_case: int = 1
@@ -116,6 +117,7 @@ class ExperimentConfig:
     command: str = ""
     workers: int = 2
     world: WorldSettings | None = None
+    overwrite: bool = False
 
 
 @dataclass
@@ -208,39 +210,6 @@ def _check_saved_policy(path: Path, use_case: UseCase, scenario: EdgeScenario) -
         )
 
 
-def _prepare_output(out_dir: Path) -> Path:
-    """A fresh temporary folder beside ``out_dir`` (the run is renamed into place at the end)."""
-    parent = out_dir.resolve().parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise OSError(f"--out {out_dir}: cannot create {parent}: {error.strerror}") from None
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ExperimentError(f"--out {out_dir}: exists and is not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OSError(f"--out {out_dir}: {parent} is not writable")
-    staging = parent / f".{out_dir.name}.partial-{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
-    try:
-        staging.mkdir()
-    except OSError as error:
-        raise OSError(f"--out {out_dir}: cannot write in {parent}: {error.strerror}") from None
-    return staging
-
-
-def _publish(staging: Path, out_dir: Path) -> None:
-    """Move the finished run into place; an older run in ``out_dir`` goes only after that."""
-    target = out_dir.resolve()
-    previous = None
-    if target.exists():
-        previous = target.parent / f".{target.name}.previous-{os.getpid()}"
-        shutil.rmtree(previous, ignore_errors=True)
-        os.replace(target, previous)
-    os.replace(staging, target)
-    if previous is not None:
-        shutil.rmtree(previous, ignore_errors=True)
-
-
 def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     """Run one use case end to end and write its results folder (see docs/results.md).
 
@@ -251,14 +220,12 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     timings = {"setup": 0.0, "tf_import": 0.0, "simulation": 0.0, "decisions": 0.0, "training": 0.0,
                "baselines_in_workers": 0.0, "waiting_for_workers": 0.0, "writing": 0.0, "plotting": 0.0}
     started = time.perf_counter()
+    check_target(Path(config.out_dir), config.overwrite)  # before the slow checks
     inputs = _check(config)
-    staging = _prepare_output(config.out_dir)
-    try:
+    output = StagedOutput(Path(config.out_dir), config.overwrite)
+    with output as staging:
         summary = _run_into(staging, config, inputs, timings, started)
-        _publish(staging, config.out_dir)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
+        output.publish()
     return ExperimentReport(out_dir=config.out_dir, summary=summary, timings_s=timings)
 
 

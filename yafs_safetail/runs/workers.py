@@ -8,8 +8,11 @@ worker never touches TensorFlow.
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import multiprocessing
+import signal
+import sys
 import time
 import zlib
 from dataclasses import dataclass
@@ -24,6 +27,8 @@ from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import UserMethod, make_baseline
 from yafs_safetail.record import records_frame
 from yafs_safetail.sim.runner import simulate
+
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 def method_rng(seed: int, method: str) -> np.random.Generator:
@@ -78,7 +83,23 @@ class MethodsJob:
         return [*self.names, *(m.name for m in self.user_methods)]
 
 
+def _end_with_parent() -> None:
+    """Ask Linux to send this worker SIGTERM when its parent dies (even by SIGKILL), so a
+    killed run leaves no orphan process; elsewhere the parent's own cleanup has to do."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        except (OSError, AttributeError):
+            pass
+
+
 def _worker_main(job: MethodsJob, sender: Connection) -> None:
+    # A worker is stopped by SIGTERM (worker.stop()); it must die at once, not unwind the
+    # parent's handlers it inherited through fork.
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    _end_with_parent()
     outcome: tuple[bool, object]
     try:
         outcome = (True, job.run())

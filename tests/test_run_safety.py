@@ -1,0 +1,172 @@
+"""Runs never lose data: protected and foreign folders are refused, earlier runs are replaced
+only with --overwrite, a second run on the same folder fails at once, and SIGTERM / SIGKILL
+leave no temporary folder (or, for SIGKILL, one the next run removes) and no orphan worker."""
+
+from __future__ import annotations
+
+import fcntl
+import importlib.util
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from yafs_safetail.runs.experiment import REPOSITORY
+from yafs_safetail.runs.output import OutputError, check_target, is_results_folder, refuse_protected
+
+SCRIPT = REPOSITORY / "experiments" / "run_usecase.py"
+TINY = ["--steps-scale", "0.02", "--redundancy", "1", "--no-figures", "--no-yafs-csv", "--quiet"]
+
+
+def start(*args: str | Path, cwd: Path = REPOSITORY) -> subprocess.Popen[str]:
+    env = {k: v for k, v in os.environ.items() if k != "YAFS_SAFETAIL_DEBUG"}
+    return subprocess.Popen([sys.executable, str(SCRIPT), *map(str, args)], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def run(*args: str | Path, cwd: Path = REPOSITORY) -> subprocess.CompletedProcess[str]:
+    process = start(*args, cwd=cwd)
+    stdout, stderr = process.communicate(timeout=600)
+    return subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
+
+
+def one_error_line(done: subprocess.CompletedProcess[str], *fragments: str) -> None:
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in done.stderr, done.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def children_of(pid: int) -> list[int]:
+    try:
+        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        return []
+
+
+def is_gone(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return True
+    return "\nState:\tZ" in status  # a zombie has ended; only its parent's bookkeeping is left
+
+
+def wait_for(condition, timeout_s: float = 120.0) -> None:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.05)
+
+
+def test_protected_folders_are_refused_in_process():
+    for folder in (Path("/"), Path.home(), Path.cwd(), REPOSITORY, REPOSITORY.parent):
+        with pytest.raises(OutputError, match="give a folder of its own"):
+            refuse_protected(folder)
+    assert refuse_protected(REPOSITORY / "results" / "uc1") == (REPOSITORY / "results" / "uc1").resolve()
+
+
+@pytest.mark.parametrize("out", [".", ".."])
+def test_out_dot_or_a_folder_holding_the_working_folder_is_refused(tmp_path, out):
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "precious.txt").write_text("my notes\n")
+    kept = snapshot(tmp_path)
+    done = run("--uc", "1", "--out", out, *TINY, cwd=work)
+    one_error_line(done, "--out", "working folder")
+    assert snapshot(tmp_path) == kept
+
+
+def test_a_folder_that_is_not_a_results_folder_is_never_written(tmp_path):
+    foreign = tmp_path / "thesis"
+    foreign.mkdir()
+    (foreign / "chapter1.tex").write_text("\\section{Intro}\n")
+    kept = snapshot(foreign)
+    for extra in ([], ["--overwrite"]):
+        done = run("--uc", "1", "--out", foreign, *TINY, *extra)
+        one_error_line(done, "not a results folder")
+    assert snapshot(foreign) == kept
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]
+
+
+def test_an_earlier_run_is_replaced_only_with_overwrite(tmp_path):
+    out = tmp_path / "run"
+    first = run("--uc", "1", "--seed", "1", "--out", out, *TINY)
+    assert first.returncode == 0, first.stderr
+    assert is_results_folder(out)
+    kept = snapshot(out)
+    again = run("--uc", "1", "--seed", "2", "--out", out, *TINY)
+    one_error_line(again, "holds an earlier run", "--overwrite")
+    assert snapshot(out) == kept
+    replaced = run("--uc", "1", "--seed", "2", "--out", out, *TINY, "--overwrite")
+    assert replaced.returncode == 0, replaced.stderr
+    assert snapshot(out) != kept and '"seed": 2' in (out / "run.json").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no lock, no temporary folder
+
+
+def test_an_empty_folder_is_used(tmp_path):
+    out = tmp_path / "made_for_it"
+    out.mkdir()
+    assert check_target(out, overwrite=False) == out.resolve()
+
+
+def test_a_second_run_on_the_same_folder_fails_at_once(tmp_path):
+    out = tmp_path / "run"
+    with open(tmp_path / ".run.lock", "a+") as lock:  # what a running run holds
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        started = time.monotonic()
+        done = run("--uc", "1", "--out", out, *TINY)
+        one_error_line(done, "another run is writing there now")
+        assert time.monotonic() - started < 60  # before any simulation
+    assert not out.exists()
+
+
+def test_sigterm_stops_workers_and_leaves_nothing_behind(tmp_path):
+    out = tmp_path / "run"
+    process = start("--uc", "1", "--out", out, "--steps-scale", "0.3", "--workers", "2",
+                    "--no-figures", "--quiet")
+    wait_for(lambda: children_of(process.pid) or process.poll() is not None)
+    workers = children_of(process.pid)
+    assert workers, "the run ended before its worker started"
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    assert stderr.strip().splitlines()[-1] == "error: terminated; no partial results were kept"
+    wait_for(lambda: all(is_gone(pid) for pid in workers), 30)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sigkill_leaves_no_orphan_and_the_next_run_clears_its_folder(tmp_path):
+    out = tmp_path / "run"
+    process = start("--uc", "1", "--out", out, "--steps-scale", "0.3", "--workers", "2",
+                    "--no-figures", "--quiet")
+    wait_for(lambda: children_of(process.pid) or process.poll() is not None)
+    workers = children_of(process.pid)
+    assert workers
+    process.kill()
+    process.communicate(timeout=60)
+    wait_for(lambda: all(is_gone(pid) for pid in workers), 30)  # PR_SET_PDEATHSIG
+    leftovers = [p.name for p in tmp_path.iterdir()]
+    assert all(name.startswith(".run.") for name in leftovers)  # a killed run cannot clean up
+    done = run("--uc", "1", "--out", out, *TINY)
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_the_default_folder_names_preset_seed_and_scale():
+    spec = importlib.util.spec_from_file_location("run_usecase_cli", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.parse_args(["--uc", "2", "--seed", "3"]).out_dir == Path("results/uc2-paper-s3")
+    quick = module.parse_args(["--uc", "1", "--preset", "tuned", "--steps-scale", "0.1"])
+    assert quick.out_dir == Path("results/uc1-tuned-s0-x0.1")

@@ -1,0 +1,164 @@
+"""Where a run's results go, without ever losing what is already there.
+
+A run writes into a fresh temporary folder beside its target (``.NAME.partial-XXXX``) and
+renames it into place only when everything is written. Before it starts, the target is
+checked: ``/``, the home folder, the working folder, the project and any folder holding one
+of them are refused; a folder that exists and is not empty must be a finished results folder
+of this tool (it has ``run.json`` and ``requests.csv``), and is replaced only with
+``overwrite``. A lock beside the target (``.NAME.lock``, held with ``flock`` for the whole run,
+so a killed run never leaves a stale lock) makes a second run on the same target fail at once.
+Whatever happens, the temporary folder is removed and the lock released; the temporary
+folder of a run killed outright (SIGKILL) is removed by the next run on the same target.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from yafs_safetail.edge.scenario import REPOSITORY
+
+RUN_FILE = "run.json"
+REQUESTS_FILE = "requests.csv"
+
+
+class OutputError(ValueError):
+    """An output folder the run refuses to write (one line naming it and why)."""
+
+
+def is_results_folder(folder: Path) -> bool:
+    """True for a finished results folder of this tool: ``run.json`` naming the package
+    version, beside ``requests.csv``."""
+    try:
+        run = json.loads((folder / RUN_FILE).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(run, dict) and "package_version" in run and (folder / REQUESTS_FILE).is_file()
+
+
+def refuse_protected(folder: Path, option: str = "--out") -> Path:
+    """``folder`` resolved, or OutputError if it is, or holds, a folder no run may replace:
+    ``/``, the home folder, the working folder or the project."""
+    target = folder.resolve()
+    protected = {Path("/"): "the file system root", Path.home().resolve(): "your home folder",
+                 Path.cwd().resolve(): "the working folder", REPOSITORY.resolve(): "the project"}
+    for place, what in protected.items():
+        if target == place or target in place.parents:
+            held = "is" if target == place else "holds"
+            raise OutputError(f"{option} {folder}: {held} {what}; give a folder of its own, e.g. results/run1")
+    return target
+
+
+def check_target(folder: Path, overwrite: bool, option: str = "--out") -> Path:
+    """The resolved target, or OutputError saying why a run may not write there."""
+    target = refuse_protected(folder, option)
+    if target.exists() or target.is_symlink():
+        if not target.is_dir() or target.is_symlink():
+            raise OutputError(f"{option} {folder}: exists and is not a folder")
+        if any(target.iterdir()):
+            if not is_results_folder(target):
+                raise OutputError(f"{option} {folder}: exists and is not a results folder of "
+                                  "yafs-safetail; nothing was written (choose another folder)")
+            if not overwrite:
+                raise OutputError(f"{option} {folder}: holds an earlier run; pass --overwrite to "
+                                  "replace it, or choose another folder")
+    return target
+
+
+@contextlib.contextmanager
+def _lock(target: Path, option: str) -> Iterator[None]:
+    path = target.parent / f".{target.name}.lock"
+    while True:
+        try:
+            handle = open(path, "a+")  # noqa: SIM115 (held for the whole run)
+        except OSError as error:
+            raise OSError(f"{option} {target}: cannot write in {target.parent}: {error.strerror}") from None
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            raise OutputError(f"{option} {target}: another run is writing there now "
+                              f"(it holds {path}); wait for it or choose another folder") from None
+        # The lock file may have been removed by a run that just ended: lock the current one.
+        try:
+            same = os.stat(path).st_ino == os.fstat(handle.fileno()).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        handle.close()
+    try:
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+        handle.close()
+
+
+class StagedOutput:
+    """The temporary folder of one run and its target (use as a context manager).
+
+    ``with StagedOutput(out_dir, overwrite) as staging: ...write into staging...;
+    output.publish()``. Leaving the block without ``publish`` removes the temporary folder and
+    keeps the target as it was.
+    """
+
+    def __init__(self, out_dir: Path, overwrite: bool = False, option: str = "--out") -> None:
+        self.out_dir = Path(out_dir)
+        self.overwrite = overwrite
+        self.option = option
+        self.target = check_target(self.out_dir, overwrite, option)
+        self.staging: Path | None = None
+        self._stack = contextlib.ExitStack()
+
+    def __enter__(self) -> Path:
+        parent = self.target.parent
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise OSError(f"{self.option} {self.out_dir}: cannot create {parent}: {error.strerror}") from None
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise OSError(f"{self.option} {self.out_dir}: {parent} is not writable")
+        with self._stack:
+            self._stack.enter_context(_lock(self.target, self.option))
+            check_target(self.out_dir, self.overwrite, self.option)  # again, now that it is ours
+            # Temporary folders of earlier runs on this target that were killed outright
+            # (SIGKILL, power loss): this tool made them, and no run can be using them now.
+            for stale in parent.glob(f".{self.target.name}.partial-*"):
+                shutil.rmtree(stale, ignore_errors=True)
+            try:
+                self.staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.partial-", dir=parent))
+            except OSError as error:
+                raise OSError(f"{self.option} {self.out_dir}: cannot write in {parent}: {error.strerror}") from None
+            self._stack = self._stack.pop_all()
+        return self.staging
+
+    def publish(self) -> None:
+        """Rename the finished run into place; an earlier run there goes only after that."""
+        assert self.staging is not None
+        target = self.target
+        check_target(self.out_dir, self.overwrite, self.option)
+        previous = None
+        if target.exists():
+            previous = Path(tempfile.mkdtemp(prefix=f".{target.name}.previous-", dir=target.parent))
+            os.replace(target, previous / target.name)
+        os.replace(self.staging, target)
+        self.staging = None
+        if previous is not None:
+            shutil.rmtree(previous, ignore_errors=True)
+
+    def __exit__(self, *exc_info: object) -> None:
+        try:
+            if self.staging is not None:
+                shutil.rmtree(self.staging, ignore_errors=True)
+                self.staging = None
+        finally:
+            self._stack.close()
