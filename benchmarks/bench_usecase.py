@@ -2,8 +2,8 @@
 
 The run is what ``python experiments/run_usecase.py --uc 1`` does: paper preset, the full step
 budget (50·β training steps, then 20·β test steps for SafeTail and for every baseline:
-Oracle, Rand-x, MinLoad-x, MinProp-x with x = 1, 2, 3), the YAFS result CSVs and the
-figures, into a temporary folder, in this one process through ``run_experiment``.
+Oracle, Rand-x, MinLoad-x, MinProp-x with x = 1, 2, 3) and the figures (``--yafs-csv``: also
+the YAFS result CSVs, which the default run no longer writes), into a temporary folder, in this one process through ``run_experiment``.
 
 The split (seconds of wall time): setup (checks, traces, worlds, the learner) with the
 TensorFlow/Keras import shown separately; simulation in this process (the core plus the edge
@@ -13,7 +13,7 @@ encoding and action choice); training (storing tuples and training rounds); with
 above: its wall time, and how long this process then waited for it; writing
 (requests/summary/run files and the policy); plotting; what is left over (records frames,
 moving the folder into place); and the package imports. The last line is
-``total_s=<number>``: imports plus the run. The ``cpu`` line is this process's CPU time, for comparing runs on a busy machine.
+``folder_mb=`` (the results folder's size) and ``total_s=<number>``: imports plus the run. The ``cpu`` line is this process's CPU time, for comparing runs on a busy machine.
 
 Usage::
 
@@ -54,12 +54,13 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2,
                         help="processes (default 2: the baselines run beside SafeTail's training)")
     parser.add_argument("--profile", type=Path, default=None, help="write a cProfile of the run here")
+    parser.add_argument("--yafs-csv", action="store_true", help="also write the YAFS result CSVs")
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory(prefix="bench_usecase_") as tmp:
         config = ExperimentConfig(
             use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=Path(tmp) / "run",
-            steps_scale=args.steps_scale, redundancy_levels=(1, 2, 3), write_yafs_csv=True,
+            steps_scale=args.steps_scale, redundancy_levels=(1, 2, 3), write_yafs_csv=args.yafs_csv,
             figures=True, progress=False, command="benchmarks/bench_usecase.py", workers=args.workers,
         )
         if args.profile is None:
@@ -71,6 +72,7 @@ def main() -> None:
             report = profiler.runcall(run_experiment, config)
             profiler.dump_stats(args.profile)
         n_rows = int(report.summary["n_requests"].sum())
+        folder_bytes = sum(f.stat().st_size for f in report.out_dir.rglob("*") if f.is_file())
 
     timings = report.timings_s
     imports_s = IMPORTED - STARTED
@@ -90,6 +92,7 @@ def main() -> None:
     print(f"{'cpu_workers':<{width}}{children.children_user + children.children_system:8.2f} s  "
           "(the worker processes)")
     print(f"{'imports':<{width}}{imports_s:8.2f} s")
+    print(f"folder_mb={folder_bytes / 1e6:.1f}")
     print(f"total_s={imports_s + timings['total']:.2f}")
 
 

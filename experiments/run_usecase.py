@@ -8,7 +8,8 @@
 
 The output folder gets requests.csv (one row per request and method), summary.csv and
 summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
-each method's YAFS result CSVs under yafs/, and Figs. (a)-(g) under figures/ as PNG and PDF.
+Figs. (a)-(g) under figures/ as PNG and PDF, and with --yafs-csv each method's YAFS result
+CSVs under yafs/ (about 70 MB for a full UC1 run, so only on request).
 """
 
 from __future__ import annotations
@@ -90,6 +91,8 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     parser.add_argument("--out", type=Path, default=None,
                         help="results folder (default results/uc<N>-<preset>-s<seed>, plus "
                              "-x<scale> with --steps-scale); never replaced unless --overwrite")
+    parser.add_argument("--force", action="store_true",
+                        help="run a budget beyond the limits (10 GB of results or 4 GB of memory)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier results folder at --out (only a results folder)")
     parser.add_argument("--steps-scale", type=_positive_float, default=1.0,
@@ -108,7 +111,11 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     parser.add_argument("--workers", type=_positive_int, default=2,
                         help="processes: the baselines are tested in workers-1 other processes "
                              "while SafeTail trains (default 2; 1 = one process; same results)")
-    parser.add_argument("--no-yafs-csv", action="store_true", help="skip the per-method YAFS CSVs")
+    yafs_csv = parser.add_mutually_exclusive_group()
+    yafs_csv.add_argument("--yafs-csv", action="store_true",
+                          help="also write each method's YAFS result CSVs under yafs/ (~70 MB for UC1)")
+    yafs_csv.add_argument("--no-yafs-csv", action="store_true",
+                          help="do not write the YAFS CSVs (the default; kept for older scripts)")
     parser.add_argument("--no-figures", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     args = parser.parse_args(argv)
@@ -125,9 +132,9 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         topology=args.topology, placement=placement, steps_scale=args.steps_scale,
         redundancy_levels=args.redundancy, policy=args.policy,
         methods=tuple(UserMethod(spec) for spec in args.method),
-        write_yafs_csv=not args.no_yafs_csv, figures=not args.no_figures,
+        write_yafs_csv=args.yafs_csv, figures=not args.no_figures,
         progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
-        overwrite=args.overwrite,
+        overwrite=args.overwrite, force=args.force,
     )
 
 

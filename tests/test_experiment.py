@@ -169,7 +169,7 @@ def test_other_topologies_run(tmp_path, servers):
     topology = REPOSITORY / "topologies" / f"{servers}servers.json"
     placement = REPOSITORY / "placements" / f"{servers}servers.json"
     report = run_experiment(tiny_config(tmp_path / "run", topology=topology, placement=placement,
-                                        redundancy_levels=(1, 3), write_yafs_csv=False, steps_scale=0.01))
+                                        redundancy_levels=(1, 3), write_yafs_csv=False, steps_scale=0.013))
     run = results.read_run_json(tmp_path / "run" / "run.json")
     assert run.n_servers == servers
     requests = results.read_requests_csv(tmp_path / "run" / "requests.csv")

@@ -19,7 +19,7 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_two_seeds_one_use_case_make_a_report(tmp_path: Path) -> None:
     out = tmp_path / "rep"
-    done = _run("--uc", "1", "--seeds", "0,1", "--steps-scale", "0.01", "--no-figures",
+    done = _run("--uc", "1", "--seeds", "0,1", "--steps-scale", "0.013", "--no-figures",
                 "--out", str(out))
     assert done.returncode == 0, done.stderr[-2000:]
     for seed in (0, 1):

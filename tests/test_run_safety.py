@@ -170,3 +170,36 @@ def test_the_default_folder_names_preset_seed_and_scale():
     assert module.parse_args(["--uc", "2", "--seed", "3"]).out_dir == Path("results/uc2-paper-s3")
     quick = module.parse_args(["--uc", "1", "--preset", "tuned", "--steps-scale", "0.1"])
     assert quick.out_dir == Path("results/uc1-tuned-s0-x0.1")
+
+
+@pytest.mark.parametrize(("args", "fragments"), [
+    (["--steps-scale", "0.01"], ["100 training requests", "κ = 128", "--steps-scale 0.0128 or more"]),
+    (["--steps-scale", "1000"], ["GB of results", "--force"]),
+    (["--steps-scale", "1e9"], ["GB of results", "--force"]),
+])
+def test_budgets_too_small_or_too_large_are_refused_before_anything_runs(tmp_path, args, fragments):
+    done = run("--uc", "1", "--out", tmp_path / "run", *args)
+    one_error_line(done, *fragments)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_too_few_test_requests_are_refused_even_without_training(tmp_path):
+    policy = tmp_path / "policy.keras"  # a saved policy: no training, so only the test budget counts
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.runs.budget import BudgetError, check_budget
+    from yafs_safetail.runs.experiment import ExperimentConfig
+
+    full = get_preset("paper", 1)
+    with pytest.raises(BudgetError, match="8 test requests, fewer than 10"):
+        check_budget(ExperimentConfig(policy=policy, steps_scale=0.002), full, full, 8, 11)
+
+
+def test_a_large_forced_budget_warns_about_the_disk(capsys):
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.runs.budget import check_budget
+    from yafs_safetail.runs.experiment import ExperimentConfig
+
+    full = get_preset("paper", 1)
+    big = get_preset("paper", 1, train_steps=2_000_000)
+    check_budget(ExperimentConfig(steps_scale=200, force=True, write_yafs_csv=True), full, big, 800_000, 11)
+    assert "warning: --steps-scale 200 will write about" in capsys.readouterr().err

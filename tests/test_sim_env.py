@@ -127,7 +127,7 @@ def test_safetail_trained_through_the_environment_gives_the_experiments_files(tm
     seed = 5
     run = run_experiment(ExperimentConfig(
         use_case=1, seed=seed, out_dir=tmp_path / "run", steps_scale=TINY, redundancy_levels=(1,),
-        figures=False, progress=False, workers=1, command="test"))
+        figures=False, write_yafs_csv=True, progress=False, workers=1, command="test"))
 
     env = make(method_name=SAFETAIL, results_path=tmp_path / "env" / f"{SAFETAIL}_train")
     config = env.unwrapped.learner_config

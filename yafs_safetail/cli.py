@@ -38,6 +38,9 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     Returns:
         The process exit code.
     """
+    # TensorFlow's C++ start-up notes (CPU features, oneDNN) say nothing about the run; an
+    # explicit TF_CPP_MIN_LOG_LEVEL in the environment still wins.
+    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _raise_terminated)
     try:

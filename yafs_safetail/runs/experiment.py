@@ -54,6 +54,7 @@ from yafs_safetail.methods.safetail.presets import (
 )
 from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
 from yafs_safetail.record import records_frame
+from yafs_safetail.runs.budget import check_budget
 from yafs_safetail.runs.output import StagedOutput, check_target
 from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
@@ -61,6 +62,7 @@ from yafs_safetail.sim.runner import simulate
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
+
 
 
 class ExperimentError(ValueError):
@@ -97,6 +99,7 @@ class ExperimentConfig:
             results do not depend on it.
         world: the world settings; None: the preset's world (:data:`PRESET_WORLDS`).
         overwrite: replace an earlier results folder at ``out_dir`` (``--overwrite``).
+        force: run a budget beyond the disk and memory limits (``--force``).
     """
 
     use_case: int = 1
@@ -110,7 +113,7 @@ class ExperimentConfig:
     redundancy_levels: tuple[int, ...] = (1, 2, 3)
     methods: tuple[UserMethod, ...] = ()
     step_interval_s: float = DEFAULT_STEP_INTERVAL_S
-    write_yafs_csv: bool = True
+    write_yafs_csv: bool = False
     figures: bool = True
     progress: bool = True
     policy: Path | None = None
@@ -118,6 +121,7 @@ class ExperimentConfig:
     workers: int = 2
     world: WorldSettings | None = None
     overwrite: bool = False
+    force: bool = False
 
 
 @dataclass
@@ -180,6 +184,9 @@ def _check(config: ExperimentConfig) -> _Inputs:
         method.make(scenario.n_servers, method_rng(config.seed, method.name))
     if config.policy is not None:
         _check_saved_policy(config.policy, use_case, scenario)
+    test_steps = scaled_steps(base.test_steps, config.steps_scale)
+    n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
+    check_budget(config, base, learner_config, test_steps, n_methods)
     settings = config.world or world_settings(PRESET_WORLDS[config.preset])
 
     def world(phase: str, n_steps: int) -> EdgeWorld:
@@ -191,7 +198,7 @@ def _check(config: ExperimentConfig) -> _Inputs:
         learner_config=learner_config,
         scenario=scenario,
         train_world=world("train", learner_config.train_steps) if config.policy is None else None,
-        test_world=world("test", scaled_steps(learner_config.test_steps, config.steps_scale)),
+        test_world=world("test", test_steps),
     )
 
 
