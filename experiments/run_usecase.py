@@ -31,6 +31,7 @@ from yafs_safetail.runs.experiment import (
     ExperimentError,
     run_experiment,
 )
+from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 
 
 class _Parser(argparse.ArgumentParser):
@@ -108,6 +109,9 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                              "named after the class unless NAME= is given)")
     parser.add_argument("--policy", type=Path, default=None,
                         help="evaluate this saved policy (.keras) without training")
+    parser.add_argument("--step-interval-s", type=_positive_float, default=DEFAULT_STEP_INTERVAL_S,
+                        help=f"simulated time between two requests, one load-trace row "
+                             f"(default {DEFAULT_STEP_INTERVAL_S:g})")
     parser.add_argument("--workers", type=_positive_int, default=2,
                         help="processes: the baselines are tested in workers-1 other processes "
                              "while SafeTail trains (default 2; 1 = one process; same results)")
@@ -134,7 +138,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         methods=tuple(UserMethod(spec) for spec in args.method),
         write_yafs_csv=args.yafs_csv, figures=not args.no_figures,
         progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
-        overwrite=args.overwrite, force=args.force,
+        overwrite=args.overwrite, force=args.force, step_interval_s=args.step_interval_s,
     )
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import fcntl
 import importlib.util
+import json
 import os
 import signal
 import subprocess
@@ -203,3 +204,25 @@ def test_a_large_forced_budget_warns_about_the_disk(capsys):
     big = get_preset("paper", 1, train_steps=2_000_000)
     check_budget(ExperimentConfig(steps_scale=200, force=True, write_yafs_csv=True), full, big, 800_000, 11)
     assert "warning: --steps-scale 200 will write about" in capsys.readouterr().err
+
+
+def test_bad_policy_files_and_slow_links_are_one_line_errors(tmp_path):
+    trained = tmp_path / "trained"
+    assert run("--uc", "1", "--out", trained, *TINY).returncode == 0
+    policy = trained / "policy.keras"
+    truncated = tmp_path / "truncated.keras"
+    truncated.write_bytes(policy.read_bytes()[:20_000])
+    (tmp_path / "truncated.keras.json").write_bytes((trained / "policy.keras.json").read_bytes())
+    one_error_line(run("--uc", "1", "--policy", truncated, "--out", tmp_path / "a", *TINY),
+                   "truncated.keras", "not a complete .keras file")
+    one_error_line(run("--uc", "2", "--policy", policy, "--out", tmp_path / "b", "--steps-scale", "0.03",
+                       "--quiet"), "trained for use case 1, not 2")
+    topology = json.loads((REPOSITORY / "topologies" / "paper_5servers.json").read_text())
+    for link in topology["link"]:
+        link["BW"] = 0.0005  # 4 kbit/s: a request takes minutes
+    slow = tmp_path / "slow.json"
+    slow.write_text(json.dumps(topology))
+    done = run("--uc", "1", "--topology", slow, "--placement", REPOSITORY / "placements" / "paper_5servers.json",
+               "--out", tmp_path / "c", *TINY)
+    one_error_line(done, "step_interval_s=60", "--step-interval-s")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists() and not (tmp_path / "c").exists()

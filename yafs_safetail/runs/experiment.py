@@ -207,6 +207,9 @@ def _check_saved_policy(path: Path, use_case: UseCase, scenario: EdgeScenario) -
     if not Path(path).is_file():
         raise ExperimentError(f"--policy {path}: no such file")
     saved = read_policy_sidecar(path)
+    trained_for = saved.get("config", {}).get("use_case")
+    if trained_for is not None and int(trained_for) != use_case.number:
+        raise ExperimentError(f"--policy {path}: trained for use case {trained_for}, not {use_case.number}")
     expected_dim = state_dim(scenario.n_servers, len(use_case.gamma_columns),
                              len(scenario.user_location))
     if int(saved["n_servers"]) != scenario.n_servers or int(saved["state_dim"]) != expected_dim:

@@ -24,8 +24,9 @@ from yafs_safetail.yafs.topology import Topology
 PROGRESS_CHUNK_STEPS = 500
 
 
-class SimulationError(RuntimeError):
-    """A simulation that could not complete every request of its world."""
+class SimulationError(ValueError):
+    """A simulation that could not complete every request of its world (a setting such as
+    ``step_interval_s`` that does not fit the world; reported as one line)."""
 
 
 @dataclass
@@ -131,6 +132,7 @@ def simulate(
     if len(simulation.records) != n_steps:
         raise SimulationError(
             f"{policy.name}: {len(simulation.records)} of {n_steps} requests completed; "
-            f"step_interval_s={step_interval_s} may be shorter than a request's latency"
+            f"step_interval_s={step_interval_s} may be shorter than a request's latency "
+            "(run_usecase.py --step-interval-s)"
         )
     return simulation.records

@@ -75,6 +75,8 @@ def read_policy_sidecar(path: str | Path) -> dict[str, Any]:
     Raises:
         PolicyFileError: a missing or malformed sidecar.
     """
+    if Path(path).is_file() and not zipfile.is_zipfile(path):
+        raise PolicyFileError(f"{path}: not a complete .keras file (truncated, or not a saved policy)")
     sidecar_path = Path(str(path) + SIDECAR_SUFFIX)
     if not sidecar_path.is_file():
         raise PolicyFileError(f"{sidecar_path}: file not found (saved with the policy)")
