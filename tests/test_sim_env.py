@@ -27,7 +27,7 @@ from yafs_safetail.runs.experiment import YAFS_DIR, ExperimentConfig, run_experi
 from yafs_safetail.runs.workers import method_rng
 from yafs_safetail.sim.env import SafeTailEnv
 
-TINY = 0.02  # UC1: 200 training steps (α_s = 1024 is capped by the budget), 80 test steps
+TINY = 0.02  # UC1: 200 training steps (within one α_s = 256 episode), 80 test steps
 
 
 def make(**options) -> gymnasium.Env:
@@ -92,7 +92,7 @@ def test_same_seed_same_trajectory_and_another_seed_differs():
 
 
 def test_episodes_are_alpha_s_requests_and_a_used_up_world_is_replaced():
-    env = make(phase="test", steps_scale=0.01)  # 40 test steps, α_s = 1024 > 40: one episode
+    env = make(phase="test", steps_scale=0.01)  # 40 test steps, α_s = 256 > 40: one episode
     env.reset(seed=3)
     steps = 0
     truncated = False
