@@ -38,3 +38,36 @@ def test_debug_env_shows_the_real_exception(monkeypatch: pytest.MonkeyPatch) -> 
 
     with pytest.raises(ValueError, match="boom"):
         run_cli(failing, [])
+
+
+def test_console_command_lists_and_dispatches(capsys: pytest.CaptureFixture[str]) -> None:
+    from yafs_safetail.cli import main
+
+    assert main([]) == 0
+    listing = capsys.readouterr().out
+    assert all(f"  {name}" in listing for name in ("run", "reproduce", "calibrate", "figures"))
+    with pytest.raises(SystemExit) as done:  # argparse's own --help exit, from run_usecase.py
+        main(["run", "--help"])
+    assert done.value.code == 0 and "--uc" in capsys.readouterr().out
+    assert main(["bogus"]) == EXIT_BAD_INPUT
+    assert capsys.readouterr().err.startswith("error: unknown command 'bogus'")
+    assert main(["figures", "/nonexistent/run"]) == EXIT_BAD_INPUT
+    assert capsys.readouterr().err == "error: /nonexistent/run: results folder not found\n"
+
+
+def test_sigterm_becomes_a_clean_exit(capsys: pytest.CaptureFixture[str]) -> None:
+    import os
+    import signal
+
+    from yafs_safetail.cli import EXIT_TERMINATED
+
+    def terminated(argv):
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("the signal should have ended the command")
+
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        assert run_cli(terminated, []) == EXIT_TERMINATED
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert capsys.readouterr().err == "error: terminated; no partial results were kept\n"

@@ -8,6 +8,7 @@ that line. Set ``YAFS_SAFETAIL_DEBUG=1`` to see the traceback instead (for bug r
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import sys
@@ -60,10 +61,53 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     return 0 if code is None else int(code)
 
 
+#: ``yafs-safetail <command>``: the experiment scripts (thin command-line fronts in the project
+#: checkout) and the figures module.
+SCRIPT_COMMANDS = {
+    "run": ("experiments/run_usecase.py", "train SafeTail and compare it on one use case"),
+    "reproduce": ("experiments/reproduce_all.py", "every use case over several seeds, one report"),
+    "calibrate": ("experiments/calibrate.py", "fit the unpublished world parameters"),
+}
+USAGE = "usage: yafs-safetail {run,reproduce,calibrate,figures} [options]   (each takes --help)"
+
+
+def _script_main(relative: str) -> Callable[[Sequence[str] | None], int | None]:
+    from yafs_safetail.edge.scenario import REPOSITORY
+
+    path = REPOSITORY / relative
+    if not path.is_file():
+        raise OSError(f"{path}: not found; the commands need the project checkout (pip install -e .)")
+    spec = importlib.util.spec_from_file_location(f"yafs_safetail_command_{path.stem}", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.main  # type: ignore[no-any-return]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """``yafs-safetail``: points to the real entry points."""
-    print(
-        "yafs-safetail: run `python experiments/run_usecase.py --uc 1` "
-        "or `python -m yafs_safetail.figures DIR`; see README.md"
-    )
-    return 0
+    """``yafs-safetail COMMAND [options]``: one console command for the project's tools."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        print(USAGE)
+        for name, (script, what) in SCRIPT_COMMANDS.items():
+            print(f"  {name:<10} {what} ({script})")
+        print(f"  {'figures':<10} redraw a results folder's figures (python -m yafs_safetail.figures)")
+        return 0
+    command, rest = args[0], args[1:]
+    if command == "figures":
+        from yafs_safetail.figures import main as figures_main
+
+        return run_cli(figures_main, rest)
+    if command not in SCRIPT_COMMANDS:
+        print(f"error: unknown command {command!r}; {USAGE}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        command_main = _script_main(SCRIPT_COMMANDS[command][0])
+    except OSError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return run_cli(command_main, rest)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
