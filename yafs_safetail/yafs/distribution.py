@@ -1,10 +1,17 @@
 """Inter-event time distributions: objects with ``.next()`` (YAFS names).
 
-No global random state: random distributions draw from a ``numpy.random.Generator`` passed
-as ``rng``, or from a generator built from their explicit ``seed``.
+YAFS3's own streams are kept: ``exponential_distribution`` / ``exponentialDistribution``
+draw from a private ``numpy.random.RandomState(seed)``; ``uniformDistribution`` and
+``exponentialDistributionStartPoint`` draw, as in YAFS3, from the global generators
+(Python's ``random`` and numpy's legacy ``numpy.random``) unless given an ``rng`` (or a
+``seed``), which is the way to keep a simulation independent of global state.
 """
 
 from __future__ import annotations
+
+import random
+import warnings
+from typing import Any
 
 import numpy as np
 
@@ -49,11 +56,11 @@ class deterministicDistributionStartPoint(Distribution):  # noqa: N801 - YAFS na
         super().__init__(name)
         self.start = start
         self.time = time
-        self._started = False
+        self.started = False
 
     def next(self) -> float:
-        if not self._started:
-            self._started = True
+        if not self.started:
+            self.started = True
             return self.start
         return self.time
 
@@ -96,14 +103,57 @@ class exponential_distribution(Distribution):  # noqa: N801 - YAFS name
         return max(int(value), 1)
 
 
+class exponentialDistribution(exponential_distribution):  # noqa: N801 - YAFS name
+    """YAFS3's deprecated name of :class:`exponential_distribution` (same draws); it warns
+    with a ``FutureWarning`` as YAFS3 does."""
+
+    def __init__(self, lambd: float, seed: int = 1, name: str = "", **kwargs: Any) -> None:
+        warnings.warn("exponentialDistribution is YAFS3's deprecated name; use exponential_distribution",
+                      FutureWarning, stacklevel=2)
+        super().__init__(lambd, seed=seed, name=name, **kwargs)
+
+
+class exponentialDistributionStartPoint(Distribution):  # noqa: N801 - YAFS name
+    """``start`` first, then exponential times of mean ``lambd`` truncated to integers.
+
+    As YAFS3: the draws come from numpy's global legacy generator (``numpy.random``) and,
+    unlike :class:`exponential_distribution`, a draw below 1 gives 0. Pass ``rng`` (a
+    ``numpy.random.Generator`` or ``RandomState``) to draw from it instead.
+
+    Args:
+        start: the first value.
+        lambd: the mean of the following inter-event times.
+        rng: a generator to draw from (default: numpy's global one, YAFS-compatible).
+        name: a label.
+    """
+
+    def __init__(self, start: float, lambd: float, rng: Any = None, name: str = "") -> None:
+        super().__init__(name)
+        self.start = start
+        self.lambd = lambd
+        self.started = False
+        self._rng = rng
+
+    def next(self) -> float:
+        if not self.started:
+            self.started = True
+            return self.start
+        draw = np.random.exponential if self._rng is None else self._rng.exponential
+        return int(draw(self.lambd))
+
+
 class uniformDistribution(Distribution):  # noqa: N801 - YAFS name
-    """Uniform integer inter-event times in ``[min, max]`` (inclusive), as YAFS draws them.
+    """Uniform integer inter-event times in ``[min, max]`` (inclusive).
+
+    As YAFS3 the default draws from Python's global ``random`` (``random.randint``). For a
+    stream of its own pass ``rng`` (a ``random.Random``) or ``seed`` (a private
+    ``random.Random(seed)``).
 
     Args:
         min: lower bound.
         max: upper bound.
-        seed: explicit seed when ``rng`` is not given.
-        rng: a generator to draw from.
+        seed: seed of a private generator (when ``rng`` is not given).
+        rng: a ``random.Random`` to draw from.
         name: a label.
     """
 
@@ -111,8 +161,8 @@ class uniformDistribution(Distribution):  # noqa: N801 - YAFS name
         self,
         min: int,  # noqa: A002 - YAFS keyword name
         max: int,  # noqa: A002 - YAFS keyword name
-        seed: int = 1,
-        rng: np.random.Generator | None = None,
+        seed: int | None = None,
+        rng: random.Random | None = None,
         name: str = "",
     ) -> None:
         super().__init__(name)
@@ -120,7 +170,9 @@ class uniformDistribution(Distribution):  # noqa: N801 - YAFS name
             raise ValueError(f"uniformDistribution: max ({max}) < min ({min})")
         self.min = min
         self.max = max
-        self._rng = rng if rng is not None else np.random.default_rng(seed)
+        if rng is None and seed is not None:
+            rng = random.Random(seed)
+        self._randint = rng.randint if rng is not None else random.randint
 
     def next(self) -> float:
-        return int(self._rng.integers(self.min, self.max, endpoint=True))
+        return self._randint(self.min, self.max)
