@@ -175,6 +175,21 @@ class _NetPut:
         self.callbacks = callbacks
 
 
+class _Inline:
+    """An event that was to run next but goes back into the queue: calls ``fn(event)``."""
+
+    __slots__ = ("callbacks", "event", "fn")
+    _ok = True
+
+    def __init__(self, fn: Callable[[Any], None], event: Any) -> None:
+        self.callbacks = (self._fire,)
+        self.event = event
+        self.fn = fn
+
+    def _fire(self, _: Any) -> None:
+        self.fn(self.event)
+
+
 class _StopRun(Exception):
     """Raised by the ``until`` event to leave the event loop (simpy's StopSimulation)."""
 

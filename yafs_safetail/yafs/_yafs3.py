@@ -30,6 +30,11 @@ from simpy.events import NORMAL, URGENT
 
 from yafs_safetail.yafs._records import _Lineage, _Proc, _Request, _Src, _Wake
 from yafs_safetail.yafs.application import Message
+from yafs_safetail.yafs.selection import Selection
+
+# YAFS compares the selection's DES list with these literals.
+_NO_DES = [None]
+_EMPTY_DES = [[]]
 
 
 def _copy_list(value: Any) -> Any:
@@ -75,33 +80,42 @@ class YAFS3Engine:
         """A source wakes up: emits if still running, then waits again (YAFS's loop)."""
         rows = self._link_rows
         # Buffers are checked once per emission rather than once per row.
-        if rows is not None and len(rows) + len(self._event_rows) >= self.metrics.buffer_rows:
+        if rows is not None and len(rows) + len(self._event_rows) >= self._flush_rows:
             self.metrics.flush()
         running = self.des_process_running
         des = src.des
         if running[des]:
-            msg = src.message.clone()
+            template = src.message
+            cls = template.__class__
+            msg = cls.__new__(cls)
+            msg.__dict__ = template.__dict__.copy()
             now = self.env._now
             msg.timestamp = now
+            app_name = src.app_name
             request = None
             if src.pure:
                 # Only users' messages get an id; module sources keep the template's (-1).
-                self._id_message += 1
-                msg.id = self._id_message
-                if self._tracking(src.app_name):
-                    request = _Request(msg.id, src.app_name, now, self.selector_path.get(src.app_name),
+                self._id_message = msg.id = self._id_message + 1
+                if self.request_listeners or self._tracked(app_name):
+                    request = _Request(msg.id, app_name, now, self.selector_path.get(app_name),
                                        des, self.alloc_DES.get(des))
             msg.original_DES_src = des
-            self._y_send(src.app_name, msg, des, request, None)
+            self._y_send(app_name, msg, des, request, None)
         if not self.stop and running[des]:
-            self._y_wait_source(src)
+            delay = src.distribution.next()
+            if delay < 0:
+                raise ValueError(f"Negative delay {delay}")
+            src.callbacks = self._y_src_tick_cbs
+            heappush(self._queue, (self.env._now + delay, NORMAL, next(self._eid), src))
 
-    def _tracking(self, app_name: Any) -> bool:
-        """Follow this request's copies? Only when someone listens for its outcome."""
-        if self.request_listeners:
-            return True
-        hook = getattr(type(self.selector_path.get(app_name)), "on_request_complete", None)
-        return hook is not None and hook is not self._base_on_request_complete
+    def _tracked(self, app_name: Any) -> bool:
+        """Does the app's selection want request outcomes (overrides ``on_request_complete``)?"""
+        cls = self.selector_path.get(app_name).__class__
+        wanted = self._track_by_class.get(cls)
+        if wanted is None:
+            hook = getattr(cls, "on_request_complete", None)
+            wanted = self._track_by_class[cls] = hook is not None and hook is not Selection.on_request_complete
+        return wanted
 
     # ----------------------------------------------------------------- sending
 
@@ -119,17 +133,18 @@ class YAFS3Engine:
                 self, app_name, message, alloc[des], alloc, self.alloc_module, self.last_busy_time,
                 from_des=des,
             )
-            if des_dst == [None] or des_dst == [[]]:
+            if des_dst == _NO_DES or des_dst == _EMPTY_DES:
                 self.logger.warning("(#DES:%s) unreachable destination for %s: path %s",
                                     des, message.name, paths)
             else:
                 items = self._net_items
-                queue = self._queue
-                eid = self._eid
-                put = self._net_put_event
-                now = self.env._now
+                cls = message.__class__
+                state = message.__dict__
                 for idx, path in enumerate(paths):
-                    msg = message.clone()
+                    # Only the first copy's put event can wake the network: the others are
+                    # processed right after it, when the network is already awake (or busy).
+                    msg = cls.__new__(cls)
+                    msg.__dict__ = state.copy()
                     msg.path = path.copy() if type(path) is list else copy.copy(path)
                     msg.app_name = app_name
                     msg.idDES = des_dst[idx]
@@ -142,9 +157,10 @@ class YAFS3Engine:
                         msg.copy_dst_node = path[-1]
                     elif lineage is not None:
                         lineage.live += 1
-                    count += 1
                     items.append(msg)
-                    heappush(queue, (now, NORMAL, next(eid), put))
+                    if not count:
+                        self._y_net_put()
+                    count += 1
         except KeyError as exc:
             self.logger.warning("(#DES:%s) unreachable destination for %s: KeyError %s",
                                 des, message.name, exc)
@@ -160,81 +176,131 @@ class YAFS3Engine:
 
     # ----------------------------------------------------------------- the network process
 
+    def _y_net_put(self) -> None:
+        """A put on the network store: its event, processed next if nothing else is due now."""
+        queue = self._queue
+        now = self.env._now
+        if self._inline_fn is None and (not queue or queue[0][0] > now):
+            self._inline_fn = self._y_on_net_put
+            self._inline_ev = self._net_put_event
+            self._inline_eid = next(self._eid)
+        else:
+            heappush(queue, (now, NORMAL, next(self._eid), self._net_put_event))
+
     def _y_on_net_put(self, event: Any) -> None:
         """A put on the network store is processed: wake the network if it waits."""
         event.callbacks = self._y_net_put_cbs
         if self._net_waiting and self._net_items:
             self._net_waiting = False
             msg = self._net_items.popleft()
-            msg.callbacks = self._y_net_get_cbs
-            heappush(self._queue, (self.env._now, NORMAL, next(self._eid), msg))
+            queue = self._queue
+            now = self.env._now
+            if self._inline_fn is None and (not queue or queue[0][0] > now):
+                # Its get is the next event: take the message now.
+                self._y_on_net_get(msg)
+            else:
+                msg.callbacks = self._y_net_get_cbs
+                heappush(queue, (now, NORMAL, next(self._eid), msg))
 
     def _y_on_net_get(self, msg: Message) -> None:
-        """The network process takes ``msg``: deliver it, or start its next hop."""
+        """The network process takes ``msg``: deliver it, or start its next hop; then it
+        loops (stops, takes the next message, or waits)."""
         now = self.env._now
         path = msg.path
         dst_int = msg.dst_int
-        transfer = None
         if not path or path[-1] == dst_int or len(path) == 1:
             msg.timestamp_rec = now
             proc = self._pipes[(msg.app_name, msg.dst, msg.idDES)]
             msg._at = proc
             proc.items.append(msg)
             proc.callbacks = self._y_pipe_put_cbs
-            heappush(self._queue, (now, NORMAL, next(self._eid), proc))
-        else:
-            # YAFS locates the message by the node it is heading to, not by a hop counter.
-            if (type(dst_int) is str and len(dst_int) == 0) or (isinstance(dst_int, int) and dst_int < 0):
-                src = path[0]
-                dst = path[1]
+            queue = self._queue
+            items = self._net_items
+            if not self.stop and items:
+                # The pipe's put event, then the network's next get (in that order).
+                heappush(queue, (now, NORMAL, next(self._eid), proc))
+                nxt = items.popleft()
+                nxt.callbacks = self._y_net_get_cbs
+                heappush(queue, (now, NORMAL, next(self._eid), nxt))
+                return
+            if self.stop:
+                self._net_alive = False
             else:
-                src = dst_int
-                dst = path[path.index(dst_int) + 1]
-            msg.dst_int = dst
-            link = (src, dst)
-            busy = self.last_busy_time
-            last_used = busy.get(link, 0.0)
-            try:
-                if self._y_inline_delay:
-                    edge = self.topology.G._adj[src][dst]
-                    latency = msg.bytes / (edge["BW"] * 1000000.0) + edge["PR"]
-                else:
-                    latency = self._hop_delay(self, msg, src, dst)
-                rows = self._link_rows
-                if rows is not None:
-                    rows.append((msg.id, "LINK", src, dst, msg.app_name, latency, msg.name, now,
-                                 msg.bytes, self._pump))
-                if not self._link_queues:
-                    transfer = latency
-                elif last_used < now:
-                    busy[link] = latency + now
-                    transfer = latency + 0.0
-                else:
-                    shift = last_used - now
-                    busy[link] = now + shift + latency
-                    transfer = latency + shift
-            except Exception:  # noqa: BLE001 - YAFS: any failure of the hop means the link is gone
-                self._y_link_failed(msg, link, now)
-        # The network process loops: it stops, takes the next message, or waits.
+                self._net_waiting = True
+            if self._inline_fn is None and (not queue or queue[0][0] > now):
+                # The pipe's put event is next; a waiting process then takes the message
+                # at once (its get is next in turn); a busy one leaves it in the pipe.
+                if proc.state == _Proc.WAIT:
+                    proc.state = _Proc.TRIG
+                    proc.items.popleft()
+                    self._y_on_proc_get(msg)
+            else:
+                heappush(queue, (now, NORMAL, next(self._eid), proc))
+            return
+        # YAFS locates the message by the node it is heading to, not by a hop counter.
+        if (type(dst_int) is str and len(dst_int) == 0) or (isinstance(dst_int, int) and dst_int < 0):
+            src = path[0]
+            dst = path[1]
+        else:
+            src = dst_int
+            dst = path[path.index(dst_int) + 1]
+        msg.dst_int = dst
+        link = (src, dst)
+        busy = self.last_busy_time
+        last_used = busy.get(link, 0.0)
+        transfer = None
+        try:
+            if self._y_inline_delay:
+                edge = self.topology.G._adj[src][dst]
+                latency = msg.bytes / (edge["BW"] * 1000000.0) + edge["PR"]
+            else:
+                latency = self._hop_delay(self, msg, src, dst)
+            rows = self._link_rows
+            if rows is not None:
+                rows.append((msg.id, "LINK", src, dst, msg.app_name, latency, msg.name, now,
+                             msg.bytes, self._pump))
+            if not self._link_queues:
+                transfer = latency
+            elif last_used < now:
+                busy[link] = latency + now
+                transfer = latency + 0.0
+            else:
+                shift = last_used - now
+                busy[link] = now + shift + latency
+                transfer = latency + shift
+        except Exception:  # noqa: BLE001 - YAFS: any failure of the hop means the link is gone
+            self._y_link_failed(msg, link, now)
+        queue = self._queue
         if self.stop:
             self._net_alive = False
         elif self._net_items:
             nxt = self._net_items.popleft()
             nxt.callbacks = self._y_net_get_cbs
-            heappush(self._queue, (now, NORMAL, next(self._eid), nxt))
+            heappush(queue, (now, NORMAL, next(self._eid), nxt))
         else:
             self._net_waiting = True
         if transfer is not None:
             # The transfer process starts (urgent: before anything else at this instant).
             self._pump += 1
             msg.callbacks = self._y_hop_end_cbs
-            heappush(self._queue, (now + transfer, NORMAL, next(self._eid), msg))
+            heappush(queue, (now + transfer, NORMAL, next(self._eid), msg))
 
     def _y_on_hop_end(self, msg: Message) -> None:
         """A hop transfer ends: the message goes back into the network store."""
         self._pump -= 1
-        self._net_items.append(msg)
-        heappush(self._queue, (self.env._now, NORMAL, next(self._eid), self._net_put_event))
+        items = self._net_items
+        items.append(msg)
+        queue = self._queue
+        now = self.env._now
+        if self._inline_fn is None and (not queue or queue[0][0] > now):
+            # The put's event is next. A waiting network (its store was empty) takes the
+            # message, and that get is next in turn; a busy one ignores the event.
+            if self._net_waiting:
+                self._net_waiting = False
+                items.popleft()
+                self._y_on_net_get(msg)
+            return
+        heappush(queue, (now, NORMAL, next(self._eid), self._net_put_event))
 
     def _y_link_failed(self, msg: Message, link: tuple[Any, Any], now: float) -> None:
         """The hop's link is gone: YAFS asks ``get_path_from_failure`` and re-queues the
@@ -270,22 +336,31 @@ class YAFS3Engine:
         if not self.stop and self.des_process_running[proc.des]:
             if proc.items:
                 proc.state = _Proc.TRIG
-                msg = proc.items.popleft()
-                msg.callbacks = self._y_proc_get_cbs
-                heappush(self._queue, (self.env._now, NORMAL, next(self._eid), msg))
+                self._y_grant(proc.items.popleft())
             else:
                 proc.state = _Proc.WAIT
         else:
             proc.state = _Proc.DONE
+
+    def _y_grant(self, msg: Message) -> None:
+        """A process's get is granted: ``msg`` is its event, processed next if nothing else
+        is due now."""
+        queue = self._queue
+        now = self.env._now
+        if self._inline_fn is None and (not queue or queue[0][0] > now):
+            self._inline_fn = self._y_on_proc_get
+            self._inline_ev = msg
+            self._inline_eid = next(self._eid)
+        else:
+            msg.callbacks = self._y_proc_get_cbs
+            heappush(queue, (now, NORMAL, next(self._eid), msg))
 
     def _y_on_pipe_put(self, proc: _Proc) -> None:
         """A put on a process's pipe is processed: hand the message over if it waits."""
         proc.callbacks = self._y_pipe_put_cbs
         if proc.state == _Proc.WAIT and proc.items:
             proc.state = _Proc.TRIG
-            msg = proc.items.popleft()
-            msg.callbacks = self._y_proc_get_cbs
-            heappush(self._queue, (self.env._now, NORMAL, next(self._eid), msg))
+            self._y_grant(proc.items.popleft())
 
     def _y_on_proc_get(self, msg: Message) -> None:
         """The process takes ``msg``: record it and serve it (sinks serve in zero time)."""
@@ -322,8 +397,18 @@ class YAFS3Engine:
         if service < 0:
             raise ValueError(f"Negative delay {service}")
         proc.state = _Proc.BUSY
-        msg.callbacks = callbacks
-        heappush(self._queue, (now + service, NORMAL, next(self._eid), msg))
+        queue = self._queue
+        when = now + service
+        if (when == now and when.__class__ is now.__class__ and self._inline_fn is None
+                and (not queue or queue[0][0] > now)):
+            # A zero service (sinks) ends at this very instant: its end is the next event.
+            # (A float zero turns an integer clock into a float one, so that stays queued.)
+            self._inline_fn = callbacks[0]
+            self._inline_ev = msg
+            self._inline_eid = next(self._eid)
+        else:
+            msg.callbacks = callbacks
+            heappush(queue, (when, NORMAL, next(self._eid), msg))
 
     def _y_record(self, proc: _Proc, msg: Message, kind: str, now: float) -> float:
         """YAFS's ``__update_node_metrics``: the service time, and the row.
@@ -345,18 +430,23 @@ class YAFS3Engine:
                     service = msg.inst / float(self.topology.G._node[id_node]["IPT"])
                 else:
                     service = self._service_time(self, msg, des, id_node, proc.module)
-            try:
-                # YAFS: the last replica of the sending module on the path's first node; any
-                # failure of that lookup falls back to the message's original source process.
-                source_des = -1
-                senders = self.alloc_module[app_name][msg.src]
-                if senders:
-                    first = msg.path[0]
-                    nodes = list(map(alloc.__getitem__, senders))
-                    if first in nodes:
-                        source_des = senders[len(nodes) - 1 - nodes[::-1].index(first)]
-            except Exception:  # noqa: BLE001 - YAFS's bare except
+            # YAFS: the last replica of the sending module on the path's first node; any
+            # failure of that lookup (e.g. the sender is a user, not a module) falls back to
+            # the message's original source process.
+            modules = self.alloc_module.get(app_name)
+            senders = modules.get(msg.src) if type(modules) is dict else None
+            if senders is None:
                 source_des = msg.original_DES_src
+            else:
+                try:
+                    source_des = -1
+                    if senders:
+                        first = msg.path[0]
+                        nodes = list(map(alloc.__getitem__, senders))
+                        if first in nodes:
+                            source_des = senders[len(nodes) - 1 - nodes[::-1].index(first)]
+                except Exception:  # noqa: BLE001 - YAFS's bare except
+                    source_des = msg.original_DES_src
             rows = self._event_rows
             if rows is not None:
                 rows.append((msg.id, kind, app_name, proc.module, msg.name, source_des, des,

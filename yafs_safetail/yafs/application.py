@@ -83,7 +83,8 @@ class Message:
 
     def clone(self) -> Message:
         """Return a shallow copy (lists such as ``path`` are shared until reassigned)."""
-        new = Message.__new__(Message)
+        cls = self.__class__
+        new = cls.__new__(cls)
         new.__dict__ = self.__dict__.copy()
         return new
 

@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 import simpy
-from simpy.events import URGENT
+from simpy.events import NORMAL, URGENT
 
 from yafs_safetail.yafs._direct import DirectEngine
-from yafs_safetail.yafs._records import _Lineage, _NetPut, _Request, _StopRun, _Until
+from yafs_safetail.yafs._records import _Inline, _Lineage, _NetPut, _Request, _StopRun, _Until
 from yafs_safetail.yafs._yafs3 import YAFS3Engine
 from yafs_safetail.yafs.application import Application, Message
 from yafs_safetail.yafs.distribution import Distribution, deterministic_distribution
@@ -98,8 +98,6 @@ class Sim(YAFS3Engine, DirectEngine):
     FORWARD_METRIC = "FWD_M"
     SINK_METRIC = "SINK_M"
     LINK_METRIC = "LINK"
-
-    _base_on_request_complete = Selection.on_request_complete
 
     def __init__(
         self,
@@ -182,6 +180,12 @@ class Sim(YAFS3Engine, DirectEngine):
         self._y_service_end_cbs = (self._y_on_service_end,)
         self._y_sink_end_cbs = (self._y_on_sink_end,)
         self._net_put_event = _NetPut(self._y_net_put_cbs)
+        self._track_by_class: dict[type, bool] = {}
+        self._flush_rows = self.metrics.buffer_rows
+        # The event to process next, bypassing the queue (False: only while run's loop runs).
+        self._inline_fn: Any = False
+        self._inline_ev: Any = None
+        self._inline_eid = 0
         if self._yafs3:
             self._start_source = self._y_start_source
             self._start_process = self._y_start_process
@@ -608,7 +612,14 @@ class Sim(YAFS3Engine, DirectEngine):
             self.metrics.close()
 
     def _run_events(self, until: float | None) -> None:
-        """simpy's ``Environment.run(until)``, step for step, in one loop."""
+        """simpy's ``Environment.run(until)``, step for step, in one loop.
+
+        An engine callback whose last act is to schedule a zero-delay event while nothing
+        else is due at this instant leaves it in ``_inline_fn``/``_inline_ev`` (with the id
+        it would have had) instead of pushing it: it is the next event either way, so the
+        loop runs it at once. Should anything reach the queue for this instant in between,
+        the event goes back into the queue and the usual order decides.
+        """
         env = self.env
         queue = self._queue
         if until is not None:
@@ -618,8 +629,22 @@ class Sim(YAFS3Engine, DirectEngine):
             # As simpy: an urgent event at ``until``, scheduled before anything it stops.
             heappush(queue, (env._now + (at - env._now), URGENT, next(self._eid), _Until()))
         pop = heappop
+        self._inline_fn = None
         try:
-            while queue:
+            while True:
+                fn = self._inline_fn
+                if fn is not None:
+                    self._inline_fn = None
+                    event = self._inline_ev
+                    now = env._now
+                    if queue and queue[0][0] <= now and queue[0] < (now, NORMAL, self._inline_eid):
+                        # Something was queued for this instant meanwhile and goes first.
+                        heappush(queue, (now, NORMAL, self._inline_eid, _Inline(fn, event)))
+                    else:
+                        fn(event)
+                        continue
+                if not queue:
+                    break
                 env._now, _, _, event = pop(queue)
                 callbacks = event.callbacks
                 event.callbacks = None
@@ -631,3 +656,8 @@ class Sim(YAFS3Engine, DirectEngine):
                     raise exc
         except _StopRun:
             pass
+        finally:
+            if self._inline_fn:
+                heappush(queue, (env._now, NORMAL, self._inline_eid,
+                                 _Inline(self._inline_fn, self._inline_ev)))
+            self._inline_fn = False

@@ -30,19 +30,25 @@ _SPECIAL = frozenset(',"\r\n')
 _NUMBERS = frozenset((int, float, bool))
 
 
-def _plain(rows: list[tuple[Any, ...]], columns: tuple[int, ...]) -> bool:
+def _plain(rows: list[tuple[Any, ...]], columns: tuple[int, ...], safe: set[Any]) -> bool:
     """True if ``%s`` formatting of ``rows`` gives exactly ``csv.writer``'s output: no None
-    (csv writes nothing), and no text that csv would quote (commas, quotes, line breaks)."""
+    (csv writes nothing), and no text that csv would quote (commas, quotes, line breaks).
+
+    ``safe`` holds values already found harmless (names, node ids); it grows, so each
+    distinct value is examined once per file.
+    """
     for column in columns:
         values = set(map(itemgetter(column), rows))
         if _NUMBERS.issuperset(map(type, values)):
             continue
-        for value in values:
+        for value in values - safe:
             if value is None:
                 return False
             text = value if type(value) is str else str(value)
             if text == "" or not _SPECIAL.isdisjoint(text):
                 return False
+            if type(value) is not float:
+                safe.add(value)
     return True
 
 
@@ -83,6 +89,7 @@ class Metrics:
         self._files: tuple[Any, Any] | None = None
         self._writers: tuple[Any, Any] | None = None
         self._started = False
+        self._safe_values: set[Any] = set()
 
     @property
     def event_path(self) -> str:
@@ -132,7 +139,7 @@ class Metrics:
             if not rows:
                 continue
             # Same bytes as csv.writer, faster: plain %s formatting when nothing needs quoting.
-            if _plain(rows, text_columns):
+            if _plain(rows, text_columns, self._safe_values):
                 self._files[index].write("".join([line_format % row for row in rows]))
             else:
                 self._writers[index].writerows(rows)
