@@ -37,6 +37,9 @@ _NO_DES = [None]
 _EMPTY_DES = [[]]
 
 
+_WAIT, _TRIG, _BUSY, _DONE = _Proc.WAIT, _Proc.TRIG, _Proc.BUSY, _Proc.DONE
+
+
 def _copy_list(value: Any) -> Any:
     """``copy.copy`` of a message's list attribute (fast path for plain lists)."""
     return value.copy() if type(value) is list else copy.copy(value)
@@ -82,6 +85,7 @@ class YAFS3Engine:
         # Buffers are checked once per emission rather than once per row.
         if rows is not None and len(rows) + len(self._event_rows) >= self._flush_rows:
             self.metrics.flush()
+            self._float_texts.clear()
         running = self.des_process_running
         des = src.des
         if running[des]:
@@ -96,7 +100,10 @@ class YAFS3Engine:
             if src.pure:
                 # Only users' messages get an id; module sources keep the template's (-1).
                 self._id_message = msg.id = self._id_message + 1
-                if self.request_listeners or self._tracked(app_name):
+                wanted = self._track_by_app.get(app_name)
+                if wanted is None:
+                    wanted = self._tracked(app_name)
+                if wanted or self.request_listeners:
                     request = _Request(msg.id, app_name, now, self.selector_path.get(app_name),
                                        des, self.alloc_DES.get(des))
             msg.original_DES_src = des
@@ -109,12 +116,12 @@ class YAFS3Engine:
             heappush(self._queue, (self.env._now + delay, NORMAL, next(self._eid), src))
 
     def _tracked(self, app_name: Any) -> bool:
-        """Does the app's selection want request outcomes (overrides ``on_request_complete``)?"""
-        cls = self.selector_path.get(app_name).__class__
-        wanted = self._track_by_class.get(cls)
-        if wanted is None:
-            hook = getattr(cls, "on_request_complete", None)
-            wanted = self._track_by_class[cls] = hook is not None and hook is not Selection.on_request_complete
+        """Does the app's selection want request outcomes (overrides ``on_request_complete``)?
+
+        The answer is kept per app (``_track_by_app``, reset by ``deploy_app``).
+        """
+        hook = getattr(self.selector_path.get(app_name).__class__, "on_request_complete", None)
+        wanted = self._track_by_app[app_name] = hook is not None and hook is not Selection.on_request_complete
         return wanted
 
     # ----------------------------------------------------------------- sending
@@ -159,7 +166,15 @@ class YAFS3Engine:
                         lineage.live += 1
                     items.append(msg)
                     if not count:
-                        self._y_net_put()
+                        # The put's event: processed next if nothing else is due now.
+                        queue = self._queue
+                        now = self.env._now
+                        if self._inline_fn is None and (not queue or queue[0][0] > now):
+                            self._inline_fn = self._y_on_net_put
+                            self._inline_ev = self._net_put_event
+                            self._inline_eid = next(self._eid)
+                        else:
+                            heappush(queue, (now, NORMAL, next(self._eid), self._net_put_event))
                     count += 1
         except KeyError as exc:
             self.logger.warning("(#DES:%s) unreachable destination for %s: KeyError %s",
@@ -205,46 +220,28 @@ class YAFS3Engine:
     def _y_on_net_get(self, msg: Message) -> None:
         """The network process takes ``msg``: deliver it, or start its next hop; then it
         loops (stops, takes the next message, or waits)."""
-        now = self.env._now
         path = msg.path
         dst_int = msg.dst_int
         if not path or path[-1] == dst_int or len(path) == 1:
-            msg.timestamp_rec = now
-            proc = self._pipes[(msg.app_name, msg.dst, msg.idDES)]
-            msg._at = proc
-            proc.items.append(msg)
-            proc.callbacks = self._y_pipe_put_cbs
-            queue = self._queue
-            items = self._net_items
-            if not self.stop and items:
-                # The pipe's put event, then the network's next get (in that order).
-                heappush(queue, (now, NORMAL, next(self._eid), proc))
-                nxt = items.popleft()
-                nxt.callbacks = self._y_net_get_cbs
-                heappush(queue, (now, NORMAL, next(self._eid), nxt))
-                return
-            if self.stop:
-                self._net_alive = False
-            else:
-                self._net_waiting = True
-            if self._inline_fn is None and (not queue or queue[0][0] > now):
-                # The pipe's put event is next; a waiting process then takes the message
-                # at once (its get is next in turn); a busy one leaves it in the pipe.
-                if proc.state == _Proc.WAIT:
-                    proc.state = _Proc.TRIG
-                    proc.items.popleft()
-                    self._y_on_proc_get(msg)
-            else:
-                heappush(queue, (now, NORMAL, next(self._eid), proc))
+            self._y_deliver(msg)
             return
-        # YAFS locates the message by the node it is heading to, not by a hop counter.
-        if (type(dst_int) is str and len(dst_int) == 0) or (isinstance(dst_int, int) and dst_int < 0):
+        # YAFS locates the message by the node it is heading to, not by a hop counter;
+        # -1 (or "") means it has not left its first node.
+        kind = dst_int.__class__
+        if kind is int:
+            first_hop = dst_int < 0
+        elif kind is str:
+            first_hop = not dst_int
+        else:
+            first_hop = isinstance(dst_int, int) and dst_int < 0
+        if first_hop:
             src = path[0]
             dst = path[1]
         else:
             src = dst_int
             dst = path[path.index(dst_int) + 1]
         msg.dst_int = dst
+        now = self.env._now
         link = (src, dst)
         busy = self.last_busy_time
         last_used = busy.get(link, 0.0)
@@ -257,7 +254,19 @@ class YAFS3Engine:
                 latency = self._hop_delay(self, msg, src, dst)
             rows = self._link_rows
             if rows is not None:
-                rows.append((msg.id, "LINK", src, dst, msg.app_name, latency, msg.name, now,
+                # A link's latency recurs on every hop over it: its text is made once
+                # (writing a float is the costliest part of a row).
+                if latency.__class__ is float and latency:
+                    text = self._float_texts.get(latency)
+                    if text is None:
+                        text = self._float_texts[latency] = repr(latency)
+                else:
+                    text = latency
+                start = now
+                if first_hop and now.__class__ is float and now and now == msg.timestamp:
+                    # The emission time: written again as the message's time_emit.
+                    start = msg._emit_text = repr(now)
+                rows.append((msg.id, "LINK", src, dst, msg.app_name, text, msg.name, start,
                              msg.bytes, self._pump))
             if not self._link_queues:
                 transfer = latency
@@ -271,10 +280,11 @@ class YAFS3Engine:
         except Exception:  # noqa: BLE001 - YAFS: any failure of the hop means the link is gone
             self._y_link_failed(msg, link, now)
         queue = self._queue
+        items = self._net_items
         if self.stop:
             self._net_alive = False
-        elif self._net_items:
-            nxt = self._net_items.popleft()
+        elif items:
+            nxt = items.popleft()
             nxt.callbacks = self._y_net_get_cbs
             heappush(queue, (now, NORMAL, next(self._eid), nxt))
         else:
@@ -285,22 +295,51 @@ class YAFS3Engine:
             msg.callbacks = self._y_hop_end_cbs
             heappush(queue, (now + transfer, NORMAL, next(self._eid), msg))
 
+    def _y_deliver(self, msg: Message) -> None:
+        """The network puts ``msg`` in its process's pipe, then loops."""
+        now = self.env._now
+        msg.timestamp_rec = now
+        proc = self._pipes[(msg.app_name, msg.dst, msg.idDES)]
+        msg._at = proc
+        proc.items.append(msg)
+        proc.callbacks = self._y_pipe_put_cbs
+        queue = self._queue
+        items = self._net_items
+        if items and not self.stop:
+            # The pipe's put event, then the network's next get (in that order).
+            heappush(queue, (now, NORMAL, next(self._eid), proc))
+            nxt = items.popleft()
+            nxt.callbacks = self._y_net_get_cbs
+            heappush(queue, (now, NORMAL, next(self._eid), nxt))
+            return
+        if self.stop:
+            self._net_alive = False
+        else:
+            self._net_waiting = True
+        if self._inline_fn is None and (not queue or queue[0][0] > now):
+            # The pipe's put event is next; a waiting process then takes the message at
+            # once (its get is next in turn); a busy one leaves it in the pipe.
+            if proc.state == _WAIT:
+                proc.state = _TRIG
+                proc.items.popleft()
+                self._y_on_proc_get(msg)
+        else:
+            heappush(queue, (now, NORMAL, next(self._eid), proc))
+
     def _y_on_hop_end(self, msg: Message) -> None:
         """A hop transfer ends: the message goes back into the network store."""
         self._pump -= 1
-        items = self._net_items
-        items.append(msg)
         queue = self._queue
-        now = self.env._now
-        if self._inline_fn is None and (not queue or queue[0][0] > now):
-            # The put's event is next. A waiting network (its store was empty) takes the
-            # message, and that get is next in turn; a busy one ignores the event.
-            if self._net_waiting:
-                self._net_waiting = False
-                items.popleft()
-                self._y_on_net_get(msg)
+        if self._net_waiting and self._inline_fn is None and (not queue or queue[0][0] > self.env._now):
+            # The put's event is next and wakes the waiting network (its store was empty),
+            # whose get is next in turn: it takes the message now.
+            self._net_waiting = False
+            self._y_on_net_get(msg)
             return
-        heappush(queue, (now, NORMAL, next(self._eid), self._net_put_event))
+        self._net_items.append(msg)
+        if self._inline_fn is None and (not queue or queue[0][0] > self.env._now):
+            return  # the put's event is next and finds the network busy: nothing to do
+        heappush(queue, (self.env._now, NORMAL, next(self._eid), self._net_put_event))
 
     def _y_link_failed(self, msg: Message, link: tuple[Any, Any], now: float) -> None:
         """The hop's link is gone: YAFS asks ``get_path_from_failure`` and re-queues the
@@ -335,12 +374,12 @@ class YAFS3Engine:
         """Top of YAFS's consumer loop: go on while running, take the next message or wait."""
         if not self.stop and self.des_process_running[proc.des]:
             if proc.items:
-                proc.state = _Proc.TRIG
+                proc.state = _TRIG
                 self._y_grant(proc.items.popleft())
             else:
-                proc.state = _Proc.WAIT
+                proc.state = _WAIT
         else:
-            proc.state = _Proc.DONE
+            proc.state = _DONE
 
     def _y_grant(self, msg: Message) -> None:
         """A process's get is granted: ``msg`` is its event, processed next if nothing else
@@ -358,8 +397,8 @@ class YAFS3Engine:
     def _y_on_pipe_put(self, proc: _Proc) -> None:
         """A put on a process's pipe is processed: hand the message over if it waits."""
         proc.callbacks = self._y_pipe_put_cbs
-        if proc.state == _Proc.WAIT and proc.items:
-            proc.state = _Proc.TRIG
+        if proc.state == _WAIT and proc.items:
+            proc.state = _TRIG
             self._y_grant(proc.items.popleft())
 
     def _y_on_proc_get(self, msg: Message) -> None:
@@ -396,7 +435,7 @@ class YAFS3Engine:
             callbacks = self._y_service_end_cbs
         if service < 0:
             raise ValueError(f"Negative delay {service}")
-        proc.state = _Proc.BUSY
+        proc.state = _BUSY
         queue = self._queue
         when = now + service
         if (when == now and when.__class__ is now.__class__ and self._inline_fn is None
@@ -449,9 +488,25 @@ class YAFS3Engine:
                     source_des = msg.original_DES_src
             rows = self._event_rows
             if rows is not None:
+                # Texts made once: a service time (it recurs), and the arrival time when it
+                # is also the start time (no wait in the pipe).
+                if service.__class__ is float and service:
+                    service_text = self._float_texts.get(service)
+                    if service_text is None:
+                        service_text = self._float_texts[service] = repr(service)
+                else:
+                    service_text = service
+                reception = float(msg.timestamp_rec)
+                if reception == now and now.__class__ is float and now:
+                    reception = start = repr(now)
+                else:
+                    start = now
+                emitted = float(msg.timestamp)
+                if emitted.__class__ is float and emitted:
+                    emitted = msg.__dict__.get("_emit_text", emitted)
                 rows.append((msg.id, kind, app_name, proc.module, msg.name, source_des, des,
-                             msg.path[0], id_node, msg.src, service, now, service + now,
-                             float(msg.timestamp), float(msg.timestamp_rec)))
+                             msg.path[0], id_node, msg.src, service_text, start, service + now,
+                             emitted, reception))
             return service
         except KeyError:
             self.logger.critical("process %s (%s) has no node or its node lost its attributes; "

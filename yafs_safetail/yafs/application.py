@@ -72,8 +72,7 @@ class Message:
         self.original_DES_src: int | None = None
         self.copy_index: int = -1
         self.copy_dst_node: Any = None
-        # Core-private: position on ``path`` and the copy lineage record.
-        self._hop: int = 0
+        # Core-private: the copy lineage record.
         self._lineage: Any = None
 
     @property

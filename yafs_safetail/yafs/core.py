@@ -180,7 +180,9 @@ class Sim(YAFS3Engine, DirectEngine):
         self._y_service_end_cbs = (self._y_on_service_end,)
         self._y_sink_end_cbs = (self._y_on_sink_end,)
         self._net_put_event = _NetPut(self._y_net_put_cbs)
-        self._track_by_class: dict[type, bool] = {}
+        self._track_by_app: dict[Any, bool] = {}
+        # Text of the float values written since the last flush (the yafs3 engine's rows).
+        self._float_texts: dict[float, str] = {}
         self._flush_rows = self.metrics.buffer_rows
         # The event to process next, bypassing the queue (False: only while run's loop runs).
         self._inline_fn: Any = False
@@ -360,6 +362,7 @@ class Sim(YAFS3Engine, DirectEngine):
                     self.env.process(self._control_process(population, "population"))
             self.population_policy[population.name]["apps"].append(app.name)
         self.selector_path[app.name] = selector
+        self._track_by_app.pop(app.name, None)
 
     def deploy_app2(self, app: Application, placement: Placement, population: Population,
                     selector: Selection) -> None:
@@ -647,6 +650,10 @@ class Sim(YAFS3Engine, DirectEngine):
                     break
                 env._now, _, _, event = pop(queue)
                 callbacks = event.callbacks
+                if callbacks.__class__ is tuple:
+                    # The engines' own events: one callback, set again before each push.
+                    callbacks[0](event)
+                    continue
                 event.callbacks = None
                 for callback in callbacks:
                     callback(event)
