@@ -183,7 +183,40 @@ except ImportError:
     pass
 
 _clock = time.process_time if os.environ.get("BENCH_CPU") else time.perf_counter
-_spent = [0.0]
+_spent = [0.0, 0.0]  # Sim.run, and the scripts' own code called from it
+
+def _timed_user(function):
+    def call(*args, **kwargs):
+        start = _clock()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            _spent[1] += _clock() - start
+    call._bench_user = True
+    return call
+
+def _from_script(obj):
+    # Defined in the script's own folder (not in YAFS or in this core)?
+    code = getattr(obj, "__code__", None)
+    if code is None:
+        module = sys.modules.get(type(obj).__module__)
+        filename = getattr(module, "__file__", None) or ""
+    else:
+        filename = code.co_filename
+    return os.path.abspath(filename).startswith(os.getcwd() + os.sep)
+
+def _mark_user(obj, names):
+    # The script's selection / placement / population methods, timed as the script's code.
+    if not _from_script(obj):
+        return
+    for name in names:
+        method = getattr(obj, name, None)
+        if method is not None and not getattr(method, "_bench_user", False):
+            try:
+                setattr(obj, name, _timed_user(method))
+            except AttributeError:
+                pass
+
 class _TimeRun:
     def find_spec(self, name, path, target=None):
         if name not in ("yafs.core", "yafs_safetail.yafs.core"):
@@ -201,6 +234,19 @@ class _TimeRun:
                 finally:
                     _spent[0] += _clock() - start
             module.Sim.run = timed
+            for deploy in ("deploy_app", "deploy_app2"):
+                original = getattr(module.Sim, deploy)
+                def deploy_timed(self, *args, _original=original, **kwargs):
+                    for obj in list(args) + list(kwargs.values()):
+                        _mark_user(obj, ("get_path", "get_path_from_failure", "initial_allocation", "run"))
+                    return _original(self, *args, **kwargs)
+                setattr(module.Sim, deploy, deploy_timed)
+            monitor = module.Sim.deploy_monitor
+            def monitor_timed(self, name, function, distribution, **param):
+                if _from_script(function):
+                    function = _timed_user(function)
+                return monitor(self, name, function, distribution, **param)
+            module.Sim.deploy_monitor = monitor_timed
         spec.loader.exec_module = exec_module
         return spec
 sys.meta_path.insert(0, _TimeRun())
@@ -209,7 +255,7 @@ import atexit
 @atexit.register
 def _report():
     with open(os.environ["BENCH_TIME_FILE"], "w") as handle:
-        handle.write(repr(_spent[0]))
+        handle.write("%r %r" % tuple(_spent))
 """
 
 _IMPORTS = (
@@ -230,9 +276,11 @@ def port_imports(folder: Path) -> None:
 
 
 def run_script(folder: Path, script: str, library: Path, site: Path, cpu: bool,
-               timeout_s: float) -> tuple[float | None, list[Path]]:
+               timeout_s: float) -> tuple[tuple[float, float] | None, list[Path]]:
     """Run ``script`` in ``folder`` with ``library`` first on the path; return its
-    ``Sim.run`` seconds (None if it failed before writing any) and the CSVs it wrote."""
+    ``Sim.run`` seconds and the part of them spent in the script's own selection,
+    placement, population and monitor code (None if it failed before writing any), and the
+    CSVs it wrote."""
     time_file = folder / ".sim_run_s"
     time_file.unlink(missing_ok=True)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), str(library), str(folder)]),
@@ -247,7 +295,7 @@ def run_script(folder: Path, script: str, library: Path, site: Path, cpu: bool,
     except subprocess.TimeoutExpired:
         return None, []
     csvs = sorted(p for p in folder.rglob("*.csv") if p.stat().st_mtime >= start)
-    seconds = float(time_file.read_text()) if time_file.exists() else None
+    seconds = tuple(map(float, time_file.read_text().split())) if time_file.exists() else None
     return seconds, csvs
 
 
@@ -259,7 +307,10 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
         return 2
     clock = "CPU" if cpu else "wall"
     print(f"Python {sys.version.split()[0]}; Sim.run {clock} seconds, median of {repeats} alternating runs")
-    print(f"{'script':<46} {'YAFS3 s':>9} {'ours s':>9} {'ratio':>7} {'pair med':>8}  CSVs")
+    print("'core': Sim.run minus the time spent in the script's own selection, placement, population")
+    print("and monitor classes/functions (defined in the script's folder; the same code on both sides)")
+    print(f"{'script':<46} {'YAFS3 s':>9} {'ours s':>9} {'ratio':>7} {'pair med':>8} "
+          f"{'core YAFS3':>10} {'core ours':>9} {'ratio':>7}  CSVs")
     with tempfile.TemporaryDirectory() as tmp:
         site = Path(tmp) / "site"
         site.mkdir()
@@ -276,7 +327,7 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
                 if side == "ours":
                     port_imports(folder)
                 folders[side] = folder
-            times: dict[str, list[float]] = {"yafs3": [], "ours": []}
+            times: dict[str, list[tuple[float, float]]] = {"yafs3": [], "ours": []}
             written: dict[str, list[Path]] = {}
             for _ in range(repeats):
                 for side, lib in (("yafs3", library), ("ours", REPOSITORY)):
@@ -296,10 +347,14 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
             if not times["yafs3"] or not times["ours"]:
                 print(f"{script:<46} {'failed':>9}  {verdict}")
                 continue
-            theirs, ours = statistics.median(times["yafs3"]), statistics.median(times["ours"])
-            pairs = [a / b for a, b in zip(times["yafs3"], times["ours"], strict=False) if b > 0]
+            theirs = statistics.median(t for t, _ in times["yafs3"])
+            ours = statistics.median(t for t, _ in times["ours"])
+            core_theirs = statistics.median(t - u for t, u in times["yafs3"])
+            core_ours = statistics.median(t - u for t, u in times["ours"])
+            pairs = [a[0] / b[0] for a, b in zip(times["yafs3"], times["ours"], strict=False) if b[0] > 0]
             print(f"{script:<46} {theirs:9.3f} {ours:9.3f} {theirs / ours:6.2f}x "
-                  f"{statistics.median(pairs):7.2f}x  {verdict}", flush=True)
+                  f"{statistics.median(pairs):7.2f}x {core_theirs:10.3f} {core_ours:9.3f} "
+                  f"{core_theirs / core_ours:6.2f}x  {verdict}", flush=True)
     return 0
 
 

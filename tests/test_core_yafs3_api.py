@@ -334,3 +334,22 @@ def test_exponential_distribution_old_name_warns_and_draws_the_same():
     reference = np.random.RandomState(4)
     assert [new.next() for _ in range(5)] == [
         max(int(v), 1) for v in reference.exponential(10, size=605)[600:]]
+
+
+def test_device_speed_aware_routing_sees_graph_changes():
+    from yafs_safetail.yafs.path_routing import DeviceSpeedAwareRouting
+
+    topology = Topology()
+    topology.G = nx.path_graph(5)
+    sim = Sim(topology, write_results=False)
+    msg = Message("Req", "None", "Svc")
+    routing = DeviceSpeedAwareRouting()
+    alloc_module = {"a": {"Svc": [9]}}
+    first = routing.get_path(sim, "a", msg, 0, {9: 4}, alloc_module, {}, 0)
+    assert first == ([[0, 1, 2, 3, 4]], [9])
+    first[0][0].append("mutated by a caller")
+    assert routing.get_path(sim, "a", msg, 0, {9: 4}, alloc_module, {}, 0)[0] == [[0, 1, 2, 3, 4]]
+    topology.G.add_edge(0, 4)  # a shortcut: networkx empties its cache, the route follows
+    assert routing.get_path(sim, "a", msg, 0, {9: 4}, alloc_module, {}, 0)[0] == [[0, 4]]
+    topology.G.remove_node(4)
+    assert routing.get_path(sim, "a", msg, 0, {9: 4}, alloc_module, {}, 0) == ([], None)

@@ -9,6 +9,9 @@ import networkx as nx
 
 from yafs_safetail.yafs.selection import Selection
 
+#: Key of this module's shortest paths in a graph's ``__networkx_cache__``.
+_PATHS_KEY = "yafs_safetail.path_routing.shortest_paths"
+
 
 class DeviceSpeedAwareRouting(Selection):
     """YAFS3's routing: the replica closest in hops; ties go to a replica never used yet.
@@ -35,13 +38,22 @@ class DeviceSpeedAwareRouting(Selection):
         best_des: Any = []
         tied: list[Any] = []
         graph = sim.topology.G
+        # Shortest paths are kept in networkx's own per-graph cache, which networkx empties
+        # whenever the graph changes (nodes, edges or attributes): same paths, computed once.
+        cache = getattr(graph, "__networkx_cache__", None)
+        known = cache.setdefault(_PATHS_KEY, {}) if cache is not None else {}
         for des in DES_dst:
             node_dst = alloc_DES[des]
-            try:
-                path = list(nx.shortest_path(graph, source=node_src, target=node_dst))
-            except (nx.NetworkXNoPath, nx.NodeNotFound):
-                self.logger.warning("There is no path between two nodes: %s - %s", node_src, node_dst)
-                return [], None
+            path = known.get((node_src, node_dst))
+            if path is None:
+                try:
+                    path = list(nx.shortest_path(graph, source=node_src, target=node_dst))
+                except (nx.NetworkXNoPath, nx.NodeNotFound):
+                    self.logger.warning("There is no path between two nodes: %s - %s", node_src, node_dst)
+                    return [], None
+                if cache is not None:
+                    known[(node_src, node_dst)] = path
+            path = list(path)
             if len(path) < best_len:
                 best_len, best_path, best_des, tied = len(path), path, des, []
             elif len(path) == best_len:
