@@ -353,3 +353,39 @@ def test_device_speed_aware_routing_sees_graph_changes():
     assert routing.get_path(sim, "a", msg, 0, {9: 4}, alloc_module, {}, 0)[0] == [[0, 4]]
     topology.G.remove_node(4)
     assert routing.get_path(sim, "a", msg, 0, {9: 4}, alloc_module, {}, 0) == ([], None)
+
+
+@pytest.mark.parametrize(("engine", "created"), [("yafs3", True), ("direct", False)])
+def test_result_files_are_created_with_the_sim_as_yafs3(tmp_path, engine, created):
+    topology = line_topology([(0, 1, 1, 1)], {0: 1, 1: 1})
+    sim = Sim(topology, default_results_path=str(tmp_path / "r"), engine=engine)
+    assert (tmp_path / "r.csv").exists() is created
+    assert (tmp_path / "r_link.csv").exists() is created
+    sim.run(1)
+    assert (tmp_path / "r.csv").read_text().startswith("id,type,app,module,message,DES.src")
+
+
+def test_yafs3_engine_with_a_custom_link_delay_sees_copy_fields(tmp_path):
+    from yafs_examples.scenarios import ReplyToSender, request_reply_app
+
+    class Recording(YAFSLinkDelay):
+        def __init__(self):
+            self.seen = []
+
+        def hop_delay_s(self, sim, message, src_node, dst_node):
+            self.seen.append((message.name, message.copy_index, message.copy_dst_node))
+            return super().hop_delay_s(sim, message, src_node, dst_node) + 0.5
+
+    delay = Recording()
+    topology = line_topology([(0, 1, 1.0, 0.5), (1, 2, 1.0, 1.0), (1, 3, 1.0, 1.0)], {0: 1, 1: 1, 2: 50, 3: 50})
+    sim = Sim(topology, default_results_path=str(tmp_path / "c"), link_delay=delay, engine="yafs3")
+    selection = ReplyToSender()
+    sim.deploy_app(request_reply_app(1000, 2000, 100.0), FixedPlacement("Svc", [2, 3]),
+                   UserPopulation(0, "Req", 100, sink="Client"), selection)
+    sim.run(150)
+    assert sorted(set(delay.seen)) == [("Req", 0, 2), ("Req", 1, 3), ("Resp", 0, 2), ("Resp", 1, 3)]
+    (outcome,) = selection.completed
+    assert [c.status for c in outcome.copies] == ["answered", "answered"]
+    # The custom delay (+0.5 per hop) is in the rows: 0.501 + 0.5 on the first hop.
+    first_hop = (tmp_path / "c_link.csv").read_text().splitlines()[1].split(",")
+    assert float(first_hop[5]) == pytest.approx(1000 / 1e6 + 0.5 + 0.5)

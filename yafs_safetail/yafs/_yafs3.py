@@ -107,7 +107,7 @@ class YAFS3Engine:
                     request = _Request(msg.id, app_name, now, self.selector_path.get(app_name),
                                        des, self.alloc_DES.get(des))
             msg.original_DES_src = des
-            self._y_send(app_name, msg, des, request, None)
+            self._y_send(app_name, msg, des, request, None, True)
         if not self.stop and running[des]:
             delay = src.distribution.next()
             if delay < 0:
@@ -127,7 +127,7 @@ class YAFS3Engine:
     # ----------------------------------------------------------------- sending
 
     def _y_send(self, app_name: Any, message: Message, des: int, request: _Request | None,
-                lineage: _Lineage | None) -> None:
+                lineage: _Lineage | None, stamp: bool = False) -> None:
         """YAFS's ``__send_message``: ask the selection, put one copy per path on the network.
 
         A ``KeyError`` anywhere (unknown app, process without a node, a selection's own
@@ -155,15 +155,18 @@ class YAFS3Engine:
                     msg.path = path.copy() if type(path) is list else copy.copy(path)
                     msg.app_name = app_name
                     msg.idDES = des_dst[idx]
-                    if request is not None:
-                        own = _Lineage(request, idx, path[-1], msg.idDES)
-                        request.lineages.append(own)
-                        own.live = 1
-                        msg._lineage = own
+                    if lineage is not None:
+                        lineage.live += 1
+                    elif stamp:
+                        # A source's message: each copy knows its index and destination
+                        # (messages derived from it inherit both).
                         msg.copy_index = idx
                         msg.copy_dst_node = path[-1]
-                    elif lineage is not None:
-                        lineage.live += 1
+                        if request is not None:
+                            own = _Lineage(request, idx, path[-1], msg.idDES)
+                            request.lineages.append(own)
+                            own.live = 1
+                            msg._lineage = own
                     items.append(msg)
                     if not count:
                         # The put's event: processed next if nothing else is due now.
@@ -535,10 +538,10 @@ class YAFS3Engine:
                 derived.id = msg.id
                 derived.last_idDes = _copy_list(msg.last_idDes)
                 derived.last_idDes.append(des)
+                derived.copy_index = msg.copy_index
+                derived.copy_dst_node = msg.copy_dst_node
                 if lineage is not None:
                     derived._lineage = lineage
-                    derived.copy_index = msg.copy_index
-                    derived.copy_dst_node = msg.copy_dst_node
                 self._y_send(app_name, derived, des, None, lineage)
                 continue
             # Broadcast to listed modules: YAFS3 itself fails here (its registers lack "p");
@@ -552,10 +555,10 @@ class YAFS3Engine:
                     derived.dst = module_dst
                     derived.last_idDes = _copy_list(msg.last_idDes)
                     derived.last_idDes.append(des)
+                    derived.copy_index = msg.copy_index
+                    derived.copy_dst_node = msg.copy_dst_node
                     if lineage is not None:
                         derived._lineage = lineage
-                        derived.copy_index = msg.copy_index
-                        derived.copy_dst_node = msg.copy_dst_node
                     self._y_send(app_name, derived, des, None, lineage)
         if lineage is not None:
             self._lineage_message_done(lineage)

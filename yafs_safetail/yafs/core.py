@@ -65,7 +65,8 @@ class Sim(YAFS3Engine, DirectEngine):
         logger: a logger (default: this module's).
         default_results_path: results path without extension; ``<path>.csv`` and
             ``<path>_link.csv`` are written (YAFS default ``"result"`` in the working
-            directory). The files are opened when :meth:`run` starts.
+            directory). The ``yafs3`` engine creates them with the Sim (as YAFS3); the
+            ``direct`` engine when :meth:`run` starts.
         link_delay: the hop delay model (default :class:`YAFSLinkDelay`).
         service_model: the admission/service model (default :class:`YAFSServiceModel`).
         seed: seed of :attr:`rng`, the numpy generator behind the ``direct`` engine's
@@ -196,6 +197,9 @@ class Sim(YAFS3Engine, DirectEngine):
             self._start_process = self._d_start_process
         self.set_link_delay(link_delay or YAFSLinkDelay())
         self.set_service_model(service_model or YAFSServiceModel())
+        if self._yafs3:
+            # As YAFS3: the result files exist (headers written) once the Sim does.
+            self.metrics.open()
 
     # ----------------------------------------------------------------- configuration
 

@@ -111,7 +111,9 @@ class exponential_distribution(Distribution):  # noqa: N801 - YAFS name
         else:
             position = self._next_in_block
             if position == len(self._block):
-                self._block = self.rnd.standard_exponential(size=_BLOCK).tolist()
+                # Blocks grow (8, 16, ... 512): short runs draw little ahead.
+                size = min(2 * len(self._block), _BLOCK) if self._block else 8
+                self._block = self.rnd.standard_exponential(size=size).tolist()
                 position = 0
             self._next_in_block = position + 1
             value = self.l * self._block[position]
