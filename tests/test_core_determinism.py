@@ -150,3 +150,20 @@ def test_distributions_are_seeded():
     assert all(isinstance(v, int) and v >= 1 for v in draws)
     u = uniformDistribution(2, 4, seed=1)
     assert {u.next() for _ in range(200)} == {2, 3, 4}
+
+
+def test_exponential_distributions_share_a_seeds_stream_and_continue_past_it(monkeypatch):
+    from yafs_safetail.yafs import distribution
+
+    monkeypatch.setattr(distribution, "_SHARED_DRAWS", 64)
+    monkeypatch.setattr(distribution, "_STREAMS", {})
+    expected = np.random.RandomState(11).exponential(3.0, size=500).tolist()
+    first = exponential_distribution(3.0, seed=11, integer=False)
+    assert [first.next() for _ in range(100)] == expected[:100]  # past the shared part
+    second = exponential_distribution(3.0, seed=11, integer=False)  # starts at the beginning
+    assert [second.next() for _ in range(30)] == expected[:30]
+    assert [first.next() for _ in range(400)] == expected[100:]
+    assert [second.next() for _ in range(470)] == expected[30:]
+    assert len(distribution._STREAMS[11].values) <= 64 + 512
+    other = exponential_distribution(3.0, seed=np.int64(11), integer=False)  # not shared
+    assert [other.next() for _ in range(10)] == expected[:10]

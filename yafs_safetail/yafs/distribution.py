@@ -17,6 +17,47 @@ import numpy as np
 
 #: Standard exponential draws taken at once by ``exponential_distribution``.
 _BLOCK = 512
+#: Draws of a seed's stream kept and shared by every ``exponential_distribution`` with that
+#: seed; a distribution that needs more continues on a private generator.
+_SHARED_DRAWS = 1 << 18
+
+
+class _SeedStream:
+    """The standard exponential draws of ``numpy.random.RandomState(seed)``, in order.
+
+    Building a ``RandomState`` costs about as much as a thousand draws, and YAFS3's scripts
+    build one per source, mostly with the same seed: the draws are made once per seed and
+    read by every distribution with that seed (each keeping its own position).
+    """
+
+    __slots__ = ("seed", "rnd", "values")
+
+    def __init__(self, seed: int) -> None:
+        self.seed = seed
+        self.rnd = np.random.RandomState(seed)
+        self.values: list[float] = []
+
+    def grow(self) -> bool:
+        """Draw more (blocks of 8, 16, ... 512); False once the shared part is full."""
+        values = self.values
+        if len(values) >= _SHARED_DRAWS:
+            return False
+        size = min(len(values), _BLOCK) if values else 8
+        values.extend(self.rnd.standard_exponential(size=size).tolist())
+        return True
+
+
+_STREAMS: dict[int, _SeedStream] = {}
+
+
+def _seed_stream(seed: Any) -> _SeedStream | None:
+    """The shared stream of an integer seed (None for other seeds: a private generator)."""
+    if type(seed) is not int:
+        return None
+    stream = _STREAMS.get(seed)
+    if stream is None:
+        stream = _STREAMS[seed] = _SeedStream(seed)
+    return stream
 
 
 class Distribution:
@@ -98,28 +139,48 @@ class exponential_distribution(Distribution):  # noqa: N801 - YAFS name
         self.l = lambd
         self.integer = integer
         self._rng = rng
-        # YAFS's stream: a private legacy RandomState. Its draws are scale * a standard
-        # exponential, so standard ones are drawn in blocks and scaled one by one: the same
-        # numbers as one call per draw, at a fraction of the cost.
-        self.rnd = np.random.RandomState(seed) if rng is None else None
-        self._block: list[float] = []
+        self.seed = seed
+        # YAFS's stream: a private legacy RandomState(seed). Its draws are scale * a
+        # standard exponential, so standard ones are drawn in blocks and scaled one by one:
+        # the same numbers as one call per draw, at a fraction of the cost. Integer seeds
+        # read a stream shared by seed (_SeedStream) up to its end, then a private one.
+        self._stream = _seed_stream(seed) if rng is None else None
+        self.rnd = None
+        if rng is None and self._stream is None:
+            self.rnd = np.random.RandomState(seed)
+        self._block: list[float] = self._stream.values if self._stream is not None else []
         self._next_in_block = 0
 
     def next(self) -> float:
-        if self.rnd is None:
+        if self._rng is not None:
             value = float(self._rng.exponential(self.l))
         else:
             position = self._next_in_block
             if position == len(self._block):
-                # Blocks grow (8, 16, ... 512): short runs draw little ahead.
-                size = min(2 * len(self._block), _BLOCK) if self._block else 8
-                self._block = self.rnd.standard_exponential(size=size).tolist()
-                position = 0
+                self._more()
+                position = self._next_in_block
             self._next_in_block = position + 1
             value = self.l * self._block[position]
         if not self.integer:
             return value
         return max(int(value), 1)
+
+    def _more(self) -> None:
+        """Make the next draw available at ``self._block[self._next_in_block]``."""
+        stream = self._stream
+        if stream is not None:
+            if stream.grow():
+                return
+            # The shared part is used up: a private generator, moved past it.
+            self._stream = None
+            self.rnd = np.random.RandomState(stream.seed)
+            self.rnd.standard_exponential(size=len(stream.values))
+            self._block = []
+        # Private blocks grow (8, 16, ... 512): short runs draw little ahead.
+        size = min(2 * len(self._block), _BLOCK) if self._block else 8
+        assert self.rnd is not None
+        self._block = self.rnd.standard_exponential(size=size).tolist()
+        self._next_in_block = 0
 
 
 class exponentialDistribution(exponential_distribution):  # noqa: N801 - YAFS name
