@@ -18,10 +18,12 @@ turn, ``--repeats`` times each, alternating. Each run times ``Sim.run`` only (a
 ``random.sample`` on sets (YAFS3's scripts call it on networkx node views; 3.11 refuses)
 and seeds the global generators identically for both libraries (one script never seeds).
 Printed per script: median ``Sim.run`` seconds of each, the ratio of the medians, the
-median of the per-pair ratios, and whether the first runs wrote byte-identical CSVs.
+median of the per-pair ratios, and whether the two libraries wrote byte-identical CSVs.
+``--split`` also times the scripts' own selection, placement, population and monitor code
+called from ``Sim.run`` (the same code on both sides) and prints the ratio without it.
 
 Run: ``python benchmarks/bench_core.py [--requests 20000]``
-     ``python benchmarks/bench_core.py --yafs3 PATH [--repeats 5] [--scripts NAME ...] [--cpu]``
+     ``python benchmarks/bench_core.py --yafs3 PATH [--repeats 5] [--scripts NAME ...] [--cpu] [--split]``
 """
 
 from __future__ import annotations
@@ -234,6 +236,8 @@ class _TimeRun:
                 finally:
                     _spent[0] += _clock() - start
             module.Sim.run = timed
+            if not os.environ.get("BENCH_SPLIT"):
+                return
             for deploy in ("deploy_app", "deploy_app2"):
                 original = getattr(module.Sim, deploy)
                 def deploy_timed(self, *args, _original=original, **kwargs):
@@ -276,18 +280,21 @@ def port_imports(folder: Path) -> None:
 
 
 def run_script(folder: Path, script: str, library: Path, site: Path, cpu: bool,
-               timeout_s: float) -> tuple[tuple[float, float] | None, list[Path]]:
+               timeout_s: float, split: bool = False) -> tuple[tuple[float, float] | None, list[Path]]:
     """Run ``script`` in ``folder`` with ``library`` first on the path; return its
-    ``Sim.run`` seconds and the part of them spent in the script's own selection,
-    placement, population and monitor code (None if it failed before writing any), and the
-    CSVs it wrote."""
+    ``Sim.run`` seconds and (with ``split``; else 0) the part of them spent in the script's
+    own selection, placement, population and monitor code (None if it failed before
+    writing any), and the CSVs it wrote."""
     time_file = folder / ".sim_run_s"
     time_file.unlink(missing_ok=True)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), str(library), str(folder)]),
                MPLBACKEND="Agg", BENCH_TIME_FILE=str(time_file), PYTHONHASHSEED="0")
     env.pop("BENCH_CPU", None)
+    env.pop("BENCH_SPLIT", None)
     if cpu:
         env["BENCH_CPU"] = "1"
+    if split:
+        env["BENCH_SPLIT"] = "1"
     start = time.time() - 1.0
     try:
         subprocess.run([sys.executable, Path(script).name], cwd=folder, env=env, timeout=timeout_s,
@@ -299,7 +306,8 @@ def run_script(folder: Path, script: str, library: Path, site: Path, cpu: bool,
     return seconds, csvs
 
 
-def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool, timeout_s: float) -> int:
+def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool, timeout_s: float,
+                      split: bool = False) -> int:
     """Run each script on YAFS3 and on this core in turn; print times, ratios, CSV equality."""
     library = yafs3 / "src"
     if not (library / "yafs" / "core.py").exists():
@@ -307,10 +315,12 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
         return 2
     clock = "CPU" if cpu else "wall"
     print(f"Python {sys.version.split()[0]}; Sim.run {clock} seconds, median of {repeats} alternating runs")
-    print("'core': Sim.run minus the time spent in the script's own selection, placement, population")
-    print("and monitor classes/functions (defined in the script's folder; the same code on both sides)")
+    if split:
+        print("'core': Sim.run minus the time spent in the script's own selection, placement, population")
+        print("and monitor classes/functions (defined in the script's folder; the same code on both sides;")
+        print("timing them adds a little to both sides' Sim.run)")
     print(f"{'script':<46} {'YAFS3 s':>9} {'ours s':>9} {'ratio':>7} {'pair med':>8} "
-          f"{'core YAFS3':>10} {'core ours':>9} {'ratio':>7}  CSVs")
+          + (f"{'core YAFS3':>10} {'core ours':>9} {'ratio':>7}  " if split else "") + "CSVs")
     with tempfile.TemporaryDirectory() as tmp:
         site = Path(tmp) / "site"
         site.mkdir()
@@ -331,7 +341,7 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
             written: dict[str, list[Path]] = {}
             for _ in range(repeats):
                 for side, lib in (("yafs3", library), ("ours", REPOSITORY)):
-                    seconds, csvs = run_script(folders[side], script, lib, site, cpu, timeout_s)
+                    seconds, csvs = run_script(folders[side], script, lib, site, cpu, timeout_s, split)
                     if seconds is not None:
                         times[side].append(seconds)
                     written.setdefault(side, csvs)
@@ -352,9 +362,10 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
             core_theirs = statistics.median(t - u for t, u in times["yafs3"])
             core_ours = statistics.median(t - u for t, u in times["ours"])
             pairs = [a[0] / b[0] for a, b in zip(times["yafs3"], times["ours"], strict=False) if b[0] > 0]
+            core = (f"{core_theirs:10.3f} {core_ours:9.3f} {core_theirs / core_ours:6.2f}x  "
+                    if split else "")
             print(f"{script:<46} {theirs:9.3f} {ours:9.3f} {theirs / ours:6.2f}x "
-                  f"{statistics.median(pairs):7.2f}x {core_theirs:10.3f} {core_ours:9.3f} "
-                  f"{core_theirs / core_ours:6.2f}x  {verdict}", flush=True)
+                  f"{statistics.median(pairs):7.2f}x {core}{verdict}", flush=True)
     return 0
 
 
@@ -365,11 +376,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scripts", nargs="*", help="subset of the YAFS3 scripts (substrings of their paths)")
     parser.add_argument("--repeats", type=int, default=5, help="alternating runs per library and script")
     parser.add_argument("--cpu", action="store_true", help="time Sim.run in CPU seconds instead of wall")
+    parser.add_argument("--split", action="store_true",
+                        help="also time the scripts' own code called from Sim.run (columns 'core')")
     parser.add_argument("--timeout", type=float, default=1800, help="seconds allowed per script run")
     args = parser.parse_args(argv)
     if args.yafs3 is not None:
         scripts = [s for s in YAFS3_SCRIPTS if not args.scripts or any(k in s for k in args.scripts)]
-        return compare_with_yafs3(args.yafs3.resolve(), scripts, args.repeats, args.cpu, args.timeout)
+        return compare_with_yafs3(args.yafs3.resolve(), scripts, args.repeats, args.cpu, args.timeout,
+                                  args.split)
     print(f"Python {sys.version.split()[0]}; {args.requests} requests x {len(SERVERS)} copies")
     with tempfile.TemporaryDirectory() as tmp:
         measure("yafs3 engine+results", args.requests, Path(tmp))
