@@ -195,9 +195,9 @@ def test_outcomes_without_result_files(tmp_path):
     assert not (tmp_path / "edge.csv").exists()
 
 
-def test_copies_to_stopped_or_unknown_processes_are_lost(tmp_path):
+def test_direct_engine_copies_to_stopped_processes_are_lost(tmp_path):
     topology = line_topology([(0, 1, 1, 1)], {0: 1.0, 1: 10.0})
-    sim = Sim(topology, write_results=False)
+    sim = Sim(topology, write_results=False, engine="direct")
     selection = MulticastAll()
     sim.deploy_app(consume_app(100), FixedPlacement("Svc", [1, 1]), UserPopulation(0, "Req", 100), selection)
     sim.run(50)  # allocates the two replicas (process ids 1 and 2)
@@ -206,6 +206,22 @@ def test_copies_to_stopped_or_unknown_processes_are_lost(tmp_path):
     outcome = selection.completed[0]
     assert [c.status for c in outcome.copies] == ["consumed", "lost"]
     assert sim.lost_messages == 1
+
+
+def test_yafs3_engine_stopped_process_serves_one_more_message_then_ends(tmp_path):
+    # YAFS3's replica process checks "running" only between messages: stopped while it
+    # waits on its pipe, it still serves the next message, then its loop ends and later
+    # messages stay in its pipe (their copies never settle).
+    topology = line_topology([(0, 1, 1, 1)], {0: 1.0, 1: 10.0})
+    sim = Sim(topology, default_results_path=str(tmp_path / "s"))
+    selection = MulticastAll()
+    sim.deploy_app(consume_app(100), FixedPlacement("Svc", [1, 1]), UserPopulation(0, "Req", 100), selection)
+    sim.run(50)
+    sim.stop_process(2)
+    sim.run(350)
+    rows = [r.split(",") for r in (tmp_path / "s.csv").read_text().splitlines()[1:]]
+    assert [(r[0], r[6]) for r in rows] == [("1", "1"), ("1", "2"), ("2", "1"), ("3", "1")]
+    assert [[c.status for c in o.copies] for o in selection.completed] == [["consumed", "consumed"]]
 
 
 def test_failed_link_is_rerouted_by_the_selection(tmp_path):

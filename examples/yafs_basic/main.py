@@ -60,7 +60,9 @@ def main(until, copies, folder_results, seed=1):
     placement = JSONPlacement(name="edge", json=HERE / "allocDefinition.json")
     selection = LowestPropagation(copies)
 
-    s = Sim(t, default_results_path=folder_results + "sim_trace")
+    # Replies are routed back to the user that sent the frame: the ``direct`` engine lets
+    # module outputs keep the request's ``original_DES_src`` (YAFS3 resets it to None).
+    s = Sim(t, default_results_path=folder_results + "sim_trace", engine="direct")
     for app in apps.values():
         s.deploy_app(app, placement, selection)
 

@@ -4,9 +4,9 @@ Port a YAFS3 script by changing its imports only: ``from yafs.core import Sim`` 
 ``from yafs_safetail.yafs.core import Sim`` (or ``import yafs_safetail.yafs as yafs``).
 Module and class names follow YAFS3: ``core.Sim``, ``topology.Topology``,
 ``application.Application``/``Message``, ``selection.Selection``, ``placement``,
-``population``, ``distribution``, ``path_routing``, ``metrics``, ``stats``; the additions are
-``hooks`` (pluggable delays), ``outcomes`` (redundant-dispatch results), ``analysis``
-(pandas helpers) and ``errors``. See docs/core.md.
+``population``, ``distribution``, ``path_routing``, ``metrics``, ``stats``, ``action``; the
+additions are ``hooks`` (pluggable delays), ``outcomes`` (redundant-dispatch results),
+``analysis`` (pandas helpers) and ``errors``. See docs/core.md.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import importlib
 from typing import Any
 
 from yafs_safetail.yafs import (
+    action,
     application,
     core,
     distribution,
@@ -30,25 +31,51 @@ from yafs_safetail.yafs import (
 )
 from yafs_safetail.yafs.application import Application, Message, create_applications_from_json
 from yafs_safetail.yafs.core import Sim
+from yafs_safetail.yafs.distribution import (
+    Distribution,
+    deterministic_distribution,
+    deterministicDistributionStartPoint,
+    exponential_distribution,
+    exponentialDistribution,
+    exponentialDistributionStartPoint,
+    uniformDistribution,
+)
 from yafs_safetail.yafs.errors import YAFSInputError
+from yafs_safetail.yafs.metrics import Metrics
 from yafs_safetail.yafs.outcomes import CopyOutcome, RequestOutcome
-from yafs_safetail.yafs.selection import Selection
+from yafs_safetail.yafs.placement import ClusterPlacement, Placement
+from yafs_safetail.yafs.population import Population, Statical
+from yafs_safetail.yafs.selection import First_ShortestPath, OneRandomPath, Selection
 from yafs_safetail.yafs.topology import Topology
 
 __all__ = [
     "Application",
+    "ClusterPlacement",
     "CopyOutcome",
+    "Distribution",
+    "First_ShortestPath",
     "Message",
+    "Metrics",
+    "OneRandomPath",
+    "Placement",
+    "Population",
     "RequestOutcome",
     "Selection",
     "Sim",
+    "Statical",
     "Topology",
     "YAFSInputError",
+    "action",
     "application",
     "core",
     "create_applications_from_json",
+    "deterministicDistributionStartPoint",
+    "deterministic_distribution",
     "distribution",
     "errors",
+    "exponentialDistribution",
+    "exponentialDistributionStartPoint",
+    "exponential_distribution",
     "hooks",
     "metrics",
     "outcomes",
@@ -57,6 +84,7 @@ __all__ = [
     "population",
     "selection",
     "topology",
+    "uniformDistribution",
 ]
 
 _LAZY = {"stats", "analysis"}  # pandas-backed; imported on first use

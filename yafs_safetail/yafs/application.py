@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import os
+import random
 from collections.abc import Callable
 from typing import Any
-
-import numpy as np
 
 from yafs_safetail.yafs.errors import (
     YAFSInputError,
@@ -73,8 +72,7 @@ class Message:
         self.original_DES_src: int | None = None
         self.copy_index: int = -1
         self.copy_dst_node: Any = None
-        # Core-private: position on ``path`` and the copy lineage record.
-        self._hop: int = 0
+        # Core-private: the copy lineage record.
         self._lineage: Any = None
 
     @property
@@ -84,7 +82,8 @@ class Message:
 
     def clone(self) -> Message:
         """Return a shallow copy (lists such as ``path`` are shared until reassigned)."""
-        new = Message.__new__(Message)
+        cls = self.__class__
+        new = cls.__new__(cls)
         new.__dict__ = self.__dict__.copy()
         return new
 
@@ -92,22 +91,21 @@ class Message:
         return f"Message({self.name!r}, {self.src!r} -> {self.dst!r}, id={self.id})"
 
 
-def fractional_selectivity(threshold: float, rng: np.random.Generator | None = None) -> bool:
+def fractional_selectivity(threshold: float, rng: Any = None) -> bool:
     """Return True with probability ``threshold`` (YAFS's forwarding filter).
 
-    The core passes its own seeded generator as ``rng``; a threshold >= 1 never draws.
-
-    Raises:
-        ValueError: a threshold below 1 without a generator (no hidden global random state).
+    Draws one number ``u`` in [0, 1) and returns ``u <= threshold``. As in YAFS the draw
+    happens even when the threshold is 1, so the stream of draws does not depend on the
+    thresholds. ``rng=None`` draws from Python's global ``random`` (YAFS-compatible); pass
+    any generator with a ``random()`` method (a ``random.Random``, a
+    ``numpy.random.Generator``) to draw from it instead: the core passes ``Sim(py_random=)``
+    (``yafs3`` engine) or ``sim.rng`` (``direct`` engine).
     """
-    if threshold >= 1.0:
-        return True
-    if rng is None:
-        raise ValueError("fractional_selectivity with threshold < 1 needs an rng (numpy Generator)")
-    return bool(rng.random() <= threshold)
+    draw = random.random() if rng is None else rng.random()
+    return bool(draw <= threshold)
 
 
-# The core injects ``rng=sim.rng`` into forwarding filters carrying this flag.
+# The core passes its own generator as ``rng`` to forwarding filters carrying this flag.
 fractional_selectivity.wants_rng = True  # type: ignore[attr-defined]
 
 
@@ -131,9 +129,23 @@ class Application:
         self.messages: dict[str, Message] = {}
         self.modules: list[str] = []
         self.modules_src: list[str] = []
-        self.modules_sink: list[str] = []
+        # YAFS: the *name* of the last sink declared (a string), or [] when there is none.
+        self.modules_sink: Any = []
         self.data: list[dict[str, Any]] = []
         self.all_messages: dict[str, Message] = {}
+        self._sinks: list[str] = []
+
+    def __str__(self) -> str:
+        lines = [f"App {self.name!r}: modules {self.modules}"]
+        for module, services in self.services.items():
+            for service in services:
+                if service["type"] == self.TYPE_SOURCE:
+                    lines.append(f"  {module}: emits {service['message_out'].name}")
+                else:
+                    out = service["message_out"]
+                    lines.append(f"  {module}: {service['message_in'].name} -> "
+                                 f"{out.name if isinstance(out, Message) else '(nothing)'}")
+        return "\n".join(lines)
 
     def set_modules(self, data: list[dict[str, dict[str, Any]]]) -> None:
         """Declare modules: ``[{name: {"Type": TYPE_*, "RAM": ...}}, ...]``."""
@@ -143,17 +155,24 @@ class Application:
             if kind == self.TYPE_SOURCE:
                 self.modules_src.append(name)
             elif kind == self.TYPE_SINK:
-                self.modules_sink.append(name)
+                self.modules_sink = name
+                self._sinks.append(name)
             self.modules.append(name)
         self.data = data
 
     def get_pure_modules(self) -> list[str]:
-        """Modules that are neither pure sources nor sinks."""
+        """Modules that are neither pure sources nor sinks (YAFS's test, so with a single
+        sink name a module whose name is a substring of it counts as a sink)."""
         return [m for m in self.modules if m not in self.modules_src and m not in self.modules_sink]
 
-    def get_sink_modules(self) -> list[str]:
-        """Sink (actuator) modules."""
+    def get_sink_modules(self) -> Any:
+        """YAFS3's value: the name of the *last* sink module declared (a string), or ``[]``
+        if there is none. :meth:`sink_module_list` gives every sink."""
         return self.modules_sink
+
+    def sink_module_list(self) -> list[str]:
+        """Every sink (actuator) module declared, in order."""
+        return list(self._sinks)
 
     def add_source_messages(self, msg: Message) -> None:
         """Register a message emitted by pure sources (users), controlled by populations."""

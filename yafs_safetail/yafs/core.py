@@ -1,26 +1,38 @@
 """The simulation engine (YAFS's ``yafs.core.Sim``), with redundant-dispatch tracking.
 
-Hot path design: no simpy process per message or hop. Every hop end, service end and
-source tick is one lightweight event pushed on simpy's own queue (``env.schedule``) with a
-bound-method callback, so ties keep simpy's deterministic insertion order and user
-processes (monitors, placement/population ``run``) interleave normally.
+Two engines share this class and its public API:
+
+* ``yafs3`` (the default with YAFS's own delay models): YAFS3's event order reproduced
+  exactly, so ported scripts write the same rows in the same order as YAFS3 (see
+  :mod:`yafs_safetail.yafs._yafs3`).
+* ``direct`` (the default when a custom ``link_delay`` or ``service_model`` is given): one
+  event per hop end, service end and source tick (see :mod:`yafs_safetail.yafs._direct`).
+
+Both push lightweight events straight onto simpy's own queue (as ``Environment.schedule``
+does), so ties keep simpy's deterministic insertion order and user processes (monitors,
+placement/population ``run``) interleave normally; :meth:`Sim.run` drives simpy's queue
+with its own loop, which is what ``Environment.run`` does minus a call per event.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import random
 from collections import deque
 from collections.abc import Callable
-from heapq import heappush
+from heapq import heappop, heappush
 from typing import Any
 
 import numpy as np
 import simpy
-from simpy.events import NORMAL
+from simpy.events import NORMAL, URGENT
 
+from yafs_safetail.yafs._direct import DirectEngine
+from yafs_safetail.yafs._records import _Inline, _Lineage, _NetPut, _Request, _StopRun, _Until
+from yafs_safetail.yafs._yafs3 import YAFS3Engine
 from yafs_safetail.yafs.application import Application, Message
-from yafs_safetail.yafs.distribution import Distribution
+from yafs_safetail.yafs.distribution import Distribution, deterministic_distribution
 from yafs_safetail.yafs.hooks import LinkDelay, ServiceModel, YAFSLinkDelay, YAFSServiceModel
 from yafs_safetail.yafs.metrics import Metrics
 from yafs_safetail.yafs.outcomes import CopyOutcome, RequestOutcome
@@ -28,106 +40,20 @@ from yafs_safetail.yafs.placement import Placement
 from yafs_safetail.yafs.population import Population
 from yafs_safetail.yafs.selection import Selection
 
-__all__ = ["Sim", "RequestOutcome", "CopyOutcome"]
+__all__ = ["Sim", "RequestOutcome", "CopyOutcome", "EVENT_UP_ENTITY", "EVENT_DOWN_ENTITY",
+           "ENGINES"]
 
 RequestListener = Callable[["Sim", RequestOutcome], None]
 
+EVENT_UP_ENTITY = "node_up"
+EVENT_DOWN_ENTITY = "node_down"
+ENGINES = ("yafs3", "direct")
 
-class _Wake:
-    """A minimal simpy-compatible event: simpy's step only needs these attributes.
-
-    ``callbacks`` is a shared one-element tuple (simpy only iterates it), so an event
-    costs one small allocation.
-    """
-
-    __slots__ = ("callbacks", "_ok", "_value", "item", "aux")
-
-    def __init__(self, callbacks: tuple[Callable[[_Wake], None]], item: Any, aux: Any = None) -> None:
-        self.callbacks = callbacks
-        self._ok = True
-        self._value = None
-        self.item = item
-        self.aux = aux
+#: Period of YAFS3's internal stop monitor (it only matters for the process id it takes).
+STOP_MONITOR_PERIOD = 200
 
 
-class _Request:
-    """Tracking record of one source-emitted request."""
-
-    __slots__ = ("request_id", "app_name", "time_emit", "selection", "lineages", "unsettled",
-                 "src_des", "src_node")
-
-    def __init__(self, request_id: int, app_name: Any, time_emit: float, selection: Any,
-                 src_des: Any, src_node: Any) -> None:
-        self.request_id = request_id
-        self.app_name = app_name
-        self.time_emit = time_emit
-        self.selection = selection
-        self.lineages: list[_Lineage] = []
-        self.unsettled = 0
-        self.src_des = src_des
-        self.src_node = src_node
-
-
-class _Lineage:
-    """One copy of a request and every message derived from it.
-
-    ``live`` counts the lineage's messages still in the system; the copy settles when
-    the first of them reaches a sink (answered) or when ``live`` drops to zero.
-    """
-
-    __slots__ = ("request", "copy_index", "dst_node", "des", "live", "status", "time_end",
-                 "refused", "lost")
-
-    def __init__(self, request: _Request, copy_index: int, dst_node: Any, des: Any) -> None:
-        self.request = request
-        self.copy_index = copy_index
-        self.dst_node = dst_node
-        self.des = des
-        self.live = 0
-        self.status: str | None = None
-        self.time_end = 0.0
-        self.refused = False
-        self.lost = False
-
-
-class _Replica:
-    """A module replica or sink: one DES process id with its FIFO queue.
-
-    ``outputs`` maps each accepted message name to its transmission rules
-    ``(message_out, filter, filter_params, module_dest, p)``, in registration order.
-    """
-
-    __slots__ = ("des", "app_name", "module", "outputs", "is_sink", "queue", "busy")
-
-    def __init__(self, des: int, app_name: Any, module: str,
-                 registers: list[dict[str, Any]], is_sink: bool) -> None:
-        self.des = des
-        self.app_name = app_name
-        self.module = module
-        self.outputs: dict[str, list[tuple[Any, Any, dict[str, Any], list[str], list[float]]]] = {}
-        for register in registers:
-            self.outputs.setdefault(register["message_in"].name, []).append((
-                register["message_out"], register["dist"], register.get("param", {}),
-                register.get("module_dest") or [], register.get("p") or [],
-            ))
-        self.is_sink = is_sink
-        self.queue: deque[Message] = deque()
-        self.busy = False
-
-
-class _Source:
-    """A pure source (user) or a module's periodic source service."""
-
-    __slots__ = ("des", "app_name", "message", "distribution")
-
-    def __init__(self, des: int, app_name: Any, message: Message, distribution: Distribution) -> None:
-        self.des = des
-        self.app_name = app_name
-        self.message = message
-        self.distribution = distribution
-
-
-class Sim:
+class Sim(YAFS3Engine, DirectEngine):
     """A YAFS-compatible discrete-event simulation of applications on a topology.
 
     Args:
@@ -139,15 +65,23 @@ class Sim:
         logger: a logger (default: this module's).
         default_results_path: results path without extension; ``<path>.csv`` and
             ``<path>_link.csv`` are written (YAFS default ``"result"`` in the working
-            directory). The files are opened when :meth:`run` starts.
+            directory). The ``yafs3`` engine creates them with the Sim (as YAFS3); the
+            ``direct`` engine when :meth:`run` starts.
         link_delay: the hop delay model (default :class:`YAFSLinkDelay`).
         service_model: the admission/service model (default :class:`YAFSServiceModel`).
-        seed: seed of :attr:`rng`, the generator behind forwarding filters such as
-            ``fractional_selectivity`` and broadcast probabilities.
+        seed: seed of :attr:`rng`, the numpy generator behind the ``direct`` engine's
+            forwarding filters (``fractional_selectivity``) and broadcast probabilities.
         write_results: False records no result rows (request outcomes still work).
+        engine: ``"yafs3"`` (YAFS3's event order, ids and quirks), ``"direct"`` (one event
+            per hop, see ``docs/core.md``), or None: ``"yafs3"`` unless a ``link_delay`` or
+            ``service_model`` other than YAFS's own is given.
+        py_random: the ``random.Random`` behind the ``yafs3`` engine's draws that YAFS3
+            takes from Python's global generator (forwarding filters, broadcast
+            probabilities); None (YAFS-compatible) uses the global ``random`` module.
 
     Attributes:
         env: the simpy ``Environment``.
+        engine: ``"yafs3"`` or ``"direct"``.
         alloc_DES: process id -> node.
         alloc_module: app -> module -> list of process ids.
         alloc_source: source process id -> ``{"id", "app", "module", "name"}``.
@@ -180,12 +114,24 @@ class Sim:
         service_model: ServiceModel | None = None,
         seed: int = 0,
         write_results: bool = True,
+        engine: str | None = None,
+        py_random: random.Random | None = None,
     ) -> None:
+        if engine is None:
+            custom = ((link_delay is not None and type(link_delay) is not YAFSLinkDelay)
+                      or (service_model is not None and type(service_model) is not YAFSServiceModel))
+            engine = "direct" if custom else "yafs3"
+        if engine not in ENGINES:
+            raise ValueError(f"Sim: engine must be one of {ENGINES}, got {engine!r}")
+        self.engine = engine
+        self._yafs3 = engine == "yafs3"
         self.env = simpy.Environment()
         self.topology = topology
         self.logger = logger or logging.getLogger(__name__)
         self.metrics = Metrics(default_results_path, enabled=write_results)
         self.rng = np.random.default_rng(seed)
+        self._py_random = py_random if py_random is not None else random
+        self._py_random_given = py_random is not None
         self.apps: dict[Any, Application] = {}
         self.alloc_DES: dict[int, Any] = {}
         self.alloc_module: dict[Any, dict[str, list[int]]] = {}
@@ -200,24 +146,60 @@ class Sim:
         self.refused_copies = 0
         self.lost_messages = 0
         self.completed_requests = 0
+        self.unreachabled_links = 0  # YAFS attribute, never incremented (as in YAFS)
         self.stop = False
         self.until: float | None = None
         self._id_process = -1
         self._id_message = 0
-        self._replicas: dict[int, _Replica] = {}
-        self._in_flight_hops = 0
         self._initialised = False
         # Hot-path shortcuts: row buffers (None = no results) and bound callbacks.
         self._link_rows = self.metrics.link_rows if write_results else None
         self._event_rows = self.metrics.event_rows if write_results else None
-        self._hop_end_callbacks = (self._on_hop_end,)
-        self._service_end_callbacks = (self._on_service_end,)
-        self._source_tick_callbacks = (self._on_source_tick,)
         # Events go straight onto simpy's heap, exactly as Environment.schedule puts them.
         self._queue = self.env._queue
         self._eid = self.env._eid
+        # direct engine state
+        self._replicas: dict[int, Any] = {}
+        self._in_flight_hops = 0
+        self._hop_end_callbacks = (self._on_hop_end,)
+        self._service_end_callbacks = (self._on_service_end,)
+        self._source_tick_callbacks = (self._on_source_tick,)
+        # yafs3 engine state: the network store, the pipes, transfers in flight.
+        self._net_items: deque[Message] = deque()
+        self._net_waiting = False
+        self._net_alive = False
+        self._pump = 0
+        self._pipes: dict[tuple[Any, Any, Any], Any] = {}
+        self._y_src_start_cbs = (self._y_on_src_start,)
+        self._y_src_tick_cbs = (self._y_on_src_tick,)
+        self._y_net_put_cbs = (self._y_on_net_put,)
+        self._y_net_get_cbs = (self._y_on_net_get,)
+        self._y_hop_end_cbs = (self._y_on_hop_end,)
+        self._y_pipe_put_cbs = (self._y_on_pipe_put,)
+        self._y_proc_start_cbs = (self._y_on_proc_start,)
+        self._y_proc_get_cbs = (self._y_on_proc_get,)
+        self._y_service_end_cbs = (self._y_on_service_end,)
+        self._y_sink_end_cbs = (self._y_on_sink_end,)
+        self._net_put_event = _NetPut(self._y_net_put_cbs)
+        self._track_by_app: dict[Any, bool] = {}
+        # Text of the float values written since the last flush (the yafs3 engine's rows).
+        self._float_texts: dict[float, str] = {}
+        self._flush_rows = self.metrics.buffer_rows
+        # The event to process next, bypassing the queue (False: only while run's loop runs).
+        self._inline_fn: Any = False
+        self._inline_ev: Any = None
+        self._inline_eid = 0
+        if self._yafs3:
+            self._start_source = self._y_start_source
+            self._start_process = self._y_start_process
+        else:
+            self._start_source = self._d_start_source
+            self._start_process = self._d_start_process
         self.set_link_delay(link_delay or YAFSLinkDelay())
         self.set_service_model(service_model or YAFSServiceModel())
+        if self._yafs3:
+            # As YAFS3: the result files exist (headers written) once the Sim does.
+            self.metrics.open()
 
     # ----------------------------------------------------------------- configuration
 
@@ -226,14 +208,38 @@ class Sim:
         self.link_delay = link_delay
         self._hop_delay = link_delay.hop_delay_s
         self._link_queues = bool(link_delay.uses_link_queues)
+        # YAFS's own formula is inlined by the yafs3 engine (same arithmetic, no call).
+        self._y_inline_delay = type(link_delay) is YAFSLinkDelay
 
     def set_service_model(self, service_model: ServiceModel) -> None:
-        """Replace the admission/service model."""
+        """Replace the admission/service model.
+
+        Raises:
+            ValueError: a concurrent service model with the ``yafs3`` engine (YAFS3 serves
+                one message at a time per replica; use ``engine="direct"``).
+        """
+        if self._yafs3 and service_model.concurrent:
+            raise ValueError("Sim: the yafs3 engine serves one message at a time per replica; "
+                             "a concurrent service model needs engine='direct'")
         self.service_model = service_model
         self._concurrent = bool(service_model.concurrent)
         self._admit = service_model.admit
         self._service_time = service_model.service_time_s
         self._release = service_model.release
+        self._y_inline_service = type(service_model) is YAFSServiceModel
+
+    @property
+    def network_pump(self) -> int:
+        """Hop transfers in flight now (YAFS's name; the ``buffer`` column counts these)."""
+        return self._pump if self._yafs3 else self._in_flight_hops
+
+    @property
+    def entity_metrics(self) -> dict[str, dict[Any, dict[str, Any]]]:
+        """YAFS's ``{"node": {id: {}}, "link": {edge: {"PR", "BW"}}}`` of the topology."""
+        graph = self.topology.G
+        return {"node": {node: {} for node in self.topology.get_nodes_att()},
+                "link": {edge: {"PR": graph.edges[edge]["PR"], "BW": graph.edges[edge]["BW"]}
+                         for edge in graph.edges}}
 
     # ----------------------------------------------------------------- ids
 
@@ -244,272 +250,6 @@ class Sim:
     def _new_message_id(self) -> int:
         self._id_message += 1
         return self._id_message
-
-    # ----------------------------------------------------------------- sending
-
-    def _emit_request(self, source: _Source) -> None:
-        """A source emits a new request: a fresh id, then one copy per returned path."""
-        msg = source.message.clone()
-        now = self.env._now
-        msg.timestamp = now
-        msg.id = self._new_message_id()
-        msg.original_DES_src = source.des
-        msg.last_idDes = []
-        app_name = source.app_name
-        request = _Request(msg.id, app_name, now, self.selector_path.get(app_name), source.des,
-                           self.alloc_DES.get(source.des))
-        self._send(app_name, msg, source.des, request, None)
-
-    def _send(self, app_name: Any, msg: Message, from_des: int, request: _Request | None,
-              lineage: _Lineage | None) -> int:
-        """Route ``msg`` with the app's selection and start every copy; return the count.
-
-        For a source-emitted request (``request`` given) each path starts a new lineage;
-        for a derived message the copies join the sender's ``lineage``.
-        """
-        selection = self.selector_path[app_name]
-        try:
-            paths, des_list = selection.get_path(
-                self, app_name, msg, self.alloc_DES[from_des], self.alloc_DES, self.alloc_module,
-                self.last_busy_time, from_des=from_des,
-            )
-        except KeyError as exc:
-            # YAFS treats a missing allocation as an unreachable destination, not a crash.
-            self.logger.warning("(#DES:%s) unreachable destination for %s: KeyError %s",
-                                from_des, msg.name, exc)
-            paths, des_list = [], []
-        if des_list and (des_list[0] is None or des_list[0] == []):
-            paths, des_list = [], []
-        count = len(paths)
-        if request is not None:
-            request.unsettled = count
-            lineages = request.lineages
-            for index in range(count):
-                lineages.append(_Lineage(request, index, paths[index][-1], des_list[index]))
-            if count == 0:
-                self.lost_messages += 1
-                self._complete(request)
-                return 0
-        elif lineage is not None:
-            lineage.live += count
-            if count == 0:
-                lineage.lost = True
-        if count == 0:
-            self.lost_messages += 1
-            return 0
-        forward = self._forward
-        # ``msg`` is always a fresh object here, so it serves as the first copy; the other
-        # copies are cloned before any copy moves (delivery may mutate it).
-        copies = [msg]
-        if count > 1:
-            copies += [msg.clone() for _ in range(count - 1)]
-        for index in range(count):
-            path = paths[index]
-            copy = copies[index]
-            copy.path = path
-            copy.app_name = app_name
-            copy.idDES = des_list[index]
-            copy._hop = 0
-            copy.dst_int = -1
-            if request is not None:
-                own = request.lineages[index]
-                own.live = 1
-                copy._lineage = own
-                copy.copy_index = index
-                copy.copy_dst_node = path[-1]
-            forward(copy)
-        return count
-
-    def _forward(self, msg: Message) -> None:
-        """Start the next hop of ``msg``, or deliver it if it is at the end of its path."""
-        path = msg.path
-        hop = msg._hop
-        if hop >= len(path) - 1:
-            self._deliver(msg)
-            return
-        src = path[hop]
-        dst = path[hop + 1]
-        msg.dst_int = dst
-        try:
-            latency = self._hop_delay(self, msg, src, dst)
-        except KeyError:
-            self._reroute(msg, src, dst)
-            return
-        now = self.env._now
-        if self._link_queues:
-            busy = self.last_busy_time
-            link = (src, dst)
-            last_used = busy.get(link, 0.0)
-            # YAFS's arithmetic, kept term for term so that times match its traces exactly.
-            if last_used < now:
-                delay = latency
-                busy[link] = latency + now
-            else:
-                shift = last_used - now
-                delay = latency + shift
-                busy[link] = now + shift + latency
-        else:
-            delay = latency
-        rows = self._link_rows
-        if rows is not None:
-            rows.append((msg.id, "LINK", src, dst, msg.app_name, latency, msg.name, now,
-                         msg.bytes, self._in_flight_hops))
-        self._in_flight_hops += 1
-        # The message itself is the hop-end event (see Message: simpy needs callbacks/_ok).
-        msg.callbacks = self._hop_end_callbacks
-        heappush(self._queue, (now + delay, NORMAL, next(self._eid), msg))
-
-    def _on_hop_end(self, msg: Message) -> None:
-        self._in_flight_hops -= 1
-        hop = msg._hop = msg._hop + 1
-        if hop >= len(msg.path) - 1:
-            self._deliver(msg)
-        else:
-            self._forward(msg)
-
-    def _reroute(self, msg: Message, src: Any, dst: Any) -> None:
-        """The link ``src -> dst`` is gone: ask the selection for another path (YAFS)."""
-        self.logger.warning("link (%s, %s) unreachable at %s; re-routing %s", src, dst,
-                            self.env._now, msg.name)
-        selection = self.selector_path[msg.app_name]
-        paths, des_list = selection.get_path_from_failure(
-            self, msg, (src, dst), self.alloc_DES, self.alloc_module, self.last_busy_time,
-            self.env._now, from_des=msg.idDES,
-        )
-        new_path = paths[0] if paths else None
-        if not new_path or src not in new_path or (
-            new_path.index(src) + 1 < len(new_path) and new_path[new_path.index(src) + 1] == dst
-        ):
-            self._drop(msg)
-            return
-        msg.path = new_path
-        msg.idDES = des_list[0]
-        msg._hop = new_path.index(src)
-        self._forward(msg)
-
-    def _drop(self, msg: Message) -> None:
-        self.lost_messages += 1
-        lineage = msg._lineage
-        if lineage is not None:
-            lineage.lost = True
-            self._lineage_message_done(lineage)
-
-    # ----------------------------------------------------------------- modules and sinks
-
-    def _deliver(self, msg: Message) -> None:
-        """``msg`` reached its destination node: hand it to its process."""
-        now = self.env._now
-        msg.timestamp_rec = now
-        replica = self._replicas.get(msg.idDES)
-        if replica is None or not self.des_process_running.get(replica.des, False):
-            self._drop(msg)
-            return
-        if replica.is_sink:
-            self._record(replica, msg, self.SINK_METRIC, 0, now)
-            lineage = msg._lineage
-            if lineage is not None:
-                if lineage.status is None:
-                    lineage.status = "answered"
-                    lineage.time_end = now
-                    self._settle(lineage)
-                self._lineage_message_done(lineage)
-            return
-        if msg.name not in replica.outputs:
-            # YAFS: a replica ignores messages none of its transmissions consume.
-            self._drop(msg)
-            return
-        node = self.alloc_DES[replica.des]
-        if not self._admit(self, msg, replica.des, node, replica.module):
-            self.refused_copies += 1
-            lineage = msg._lineage
-            if lineage is not None:
-                lineage.refused = True
-                self._lineage_message_done(lineage)
-            return
-        if self._concurrent:
-            self._start_service(replica, msg)
-        elif replica.busy:
-            replica.queue.append(msg)
-        else:
-            self._start_service(replica, msg)
-
-    def _start_service(self, replica: _Replica, msg: Message) -> None:
-        replica.busy = True
-        node = self.alloc_DES[replica.des]
-        service = self._service_time(self, msg, replica.des, node, replica.module)
-        self._record(replica, msg, self.NODE_METRIC, service, self.env._now)
-        heappush(self._queue, (self.env._now + service, NORMAL, next(self._eid),
-                               _Wake(self._service_end_callbacks, msg, replica)))
-
-    def _on_service_end(self, event: _Wake) -> None:
-        msg = event.item
-        replica = event.aux
-        node = self.alloc_DES.get(replica.des)
-        self._release(self, msg, replica.des, node, replica.module)
-        self._emit_outputs(replica, msg)
-        if not self._concurrent:
-            replica.busy = False
-            if replica.queue:
-                self._start_service(replica, replica.queue.popleft())
-
-    def _emit_outputs(self, replica: _Replica, msg: Message) -> None:
-        """Send every output ``msg`` triggers at ``replica`` (YAFS transmission rules)."""
-        lineage = msg._lineage
-        if self.des_process_running.get(replica.des, False):
-            for out, dist, param, destinations, probabilities in replica.outputs[msg.name]:
-                if not out:
-                    continue
-                if dist and not self._accepts(dist, param):
-                    continue
-                if not destinations:
-                    self._send(replica.app_name, self._derive(out, msg, replica.des), replica.des,
-                               None, lineage)
-                    continue
-                for index, module_dst in enumerate(destinations):
-                    if self.rng.random() <= probabilities[index]:
-                        derived = self._derive(out, msg, replica.des)
-                        derived.dst = module_dst
-                        self._send(replica.app_name, derived, replica.des, None, lineage)
-        if lineage is not None:
-            self._lineage_message_done(lineage)
-
-    def _accepts(self, dist: Callable[..., bool], param: dict[str, Any]) -> bool:
-        if getattr(dist, "wants_rng", False) and "rng" not in param:
-            return bool(dist(rng=self.rng, **param))
-        return bool(dist(**param))
-
-    def _derive(self, template: Message, parent: Message, des: int) -> Message:
-        """A module's output message: inherits the request id and the copy lineage."""
-        out = template.clone()
-        out.timestamp = self.env._now
-        out.id = parent.id
-        out.original_DES_src = parent.original_DES_src
-        out.last_idDes = [*parent.last_idDes, des]
-        out.copy_index = parent.copy_index
-        out.copy_dst_node = parent.copy_dst_node
-        out._lineage = parent._lineage
-        return out
-
-    def _record(self, replica: _Replica, msg: Message, kind: str, service: float, now: float) -> None:
-        rows = self._event_rows
-        if rows is None:
-            return
-        app_name = replica.app_name
-        path = msg.path
-        src_des = msg.original_DES_src
-        senders = self.alloc_module[app_name].get(msg.src) if path else None
-        if senders is not None:
-            # YAFS's rule: the last replica of the sending module on the path's first node.
-            src_des = -1
-            first = path[0]
-            alloc = self.alloc_DES
-            for des in reversed(senders):
-                if alloc.get(des) == first:
-                    src_des = des
-                    break
-        rows.append((msg.id, kind, app_name, replica.module, msg.name, src_des, replica.des,
-                     path[0] if path else None, self.alloc_DES[replica.des], msg.src, service,
-                     now, service + now, float(msg.timestamp), float(msg.timestamp_rec)))
 
     # ----------------------------------------------------------------- request outcomes
 
@@ -547,26 +287,12 @@ class Sim:
         for listener in self.request_listeners:
             listener(self, outcome)
 
-    # ----------------------------------------------------------------- sources
-
-    def _schedule_source(self, source: _Source) -> None:
-        self.env.schedule(_Wake(self._source_tick_callbacks, source), NORMAL, source.distribution.next())
-
-    def _on_source_tick(self, event: _Wake) -> None:
-        source = event.item
-        rows = self._link_rows
-        # Buffers are checked once per emitted request rather than once per row.
-        if rows is not None and len(rows) + len(self._event_rows) >= self.metrics.buffer_rows:
-            self.metrics.flush()
-        running = self.des_process_running
-        if running.get(source.des, False):
-            self._emit_request(source)
-        if not self.stop and running.get(source.des, False):
-            self._schedule_source(source)
 
     # ----------------------------------------------------------------- control processes
 
     def _control_process(self, policy: Any, kind: str):
+        # As YAFS: the process takes its id when it starts (at the first event), not when
+        # it is created.
         my_id = self._new_process_id()
         self.des_process_running[my_id] = True
         self.des_control_process[policy.name] = my_id
@@ -580,6 +306,27 @@ class Sim:
         while not self.stop and self.des_process_running[des]:
             yield self.env.timeout(distribution.next())
             function(**param)
+
+    def _stop_monitor_process(self):
+        """YAFS3's internal stop monitor: it takes a process id when it starts (so every id
+        taken during the run is one higher than it would otherwise be) and sets
+        :attr:`stop` once ``until`` is reached. With ``until=None`` it ends at once (YAFS's
+        would keep the simulation running forever)."""
+        self._new_process_id()
+        period = deterministic_distribution(STOP_MONITOR_PERIOD, name="SIM_Deterministic")
+        while not self.stop and self.until:
+            yield self.env.timeout(period.next())
+            if self.until and self.env.now >= self.until:
+                self.stop = True
+
+    def _entity_event_process(self, next_event: Callable[..., float], param: dict[str, Any],
+                              down: bool):
+        """YAFS's placeholder up/down entity processes: they take an id and only wait."""
+        my_id = self._new_process_id()
+        if down:
+            self.des_process_running[my_id] = True
+        while not self.stop and (not down or self.des_process_running[my_id]):
+            yield self.env.timeout(next_event(**param))
 
     # ----------------------------------------------------------------- public API
 
@@ -619,6 +366,7 @@ class Sim:
                     self.env.process(self._control_process(population, "population"))
             self.population_policy[population.name]["apps"].append(app.name)
         self.selector_path[app.name] = selector
+        self._track_by_app.pop(app.name, None)
 
     def deploy_app2(self, app: Application, placement: Placement, population: Population,
                     selector: Selection) -> None:
@@ -631,12 +379,16 @@ class Sim:
         self.des_process_running[des] = True
         self.alloc_DES[des] = id_node
         self.alloc_source[des] = {"id": id_node, "app": app_name, "module": msg.src, "name": msg.name}
-        self._schedule_source(_Source(des, app_name, msg, distribution))
+        self._start_source(des, app_name, msg, distribution, True)
         return des
 
     def deploy_module(self, app_name: Any, module: str, services: list[dict[str, Any]],
                       ids: list[Any]) -> list[int]:
-        """Deploy one replica of ``module`` (with its ``services``) on each node of ``ids``."""
+        """Deploy one replica of ``module`` (with its ``services``) on each node of ``ids``.
+
+        A module's source services (``add_service_source``) get their own processes first,
+        one per node, then one replica process per node, as in YAFS.
+        """
         registers = []
         deployed: list[int] = []
         for service in services:
@@ -645,7 +397,7 @@ class Sim:
                     des = self._new_process_id()
                     self.des_process_running[des] = True
                     self.alloc_DES[des] = node
-                    self._schedule_source(_Source(des, app_name, service["message_out"], service["dist"]))
+                    self._start_source(des, app_name, service["message_out"], service["dist"], False)
                     deployed.append(des)
             else:
                 registers.append(service)
@@ -654,7 +406,7 @@ class Sim:
                 des = self._new_process_id()
                 self.des_process_running[des] = True
                 self.alloc_DES[des] = node
-                self._replicas[des] = _Replica(des, app_name, module, registers, is_sink=False)
+                self._start_process(des, app_name, module, registers, False)
                 self.alloc_module.setdefault(app_name, {}).setdefault(module, []).append(des)
                 deployed.append(des)
         return deployed
@@ -664,7 +416,7 @@ class Sim:
         des = self._new_process_id()
         self.des_process_running[des] = True
         self.alloc_DES[des] = node
-        self._replicas[des] = _Replica(des, app_name, module, [], is_sink=True)
+        self._start_process(des, app_name, module, [], True)
         self.alloc_module.setdefault(app_name, {}).setdefault(module, []).append(des)
         return des
 
@@ -677,8 +429,21 @@ class Sim:
         self.env.process(self._monitor_process(des, function, distribution, param))
         return des
 
+    def register_event_entity(self, next_event_dist: Callable[..., float],
+                              event_type: str = EVENT_UP_ENTITY, **args: Any) -> None:
+        """YAFS's entity up/down processes: each takes a process id when it starts and waits
+        ``next_event_dist(**args)`` in a loop; like YAFS3's, they change nothing else."""
+        if event_type == EVENT_UP_ENTITY:
+            self.env.process(self._entity_event_process(next_event_dist, args, down=False))
+        elif event_type == EVENT_DOWN_ENTITY:
+            self.env.process(self._entity_event_process(next_event_dist, args, down=True))
+
     def stop_process(self, id: int) -> None:  # noqa: A002 - YAFS name
-        """Stop a process (a source stops emitting; a replica stops accepting messages)."""
+        """Stop a process (a source stops emitting; a replica stops taking messages).
+
+        With the ``yafs3`` engine a replica waiting on its pipe still serves the next
+        message that arrives, then ends, as YAFS's process does.
+        """
         self.des_process_running[id] = False
 
     def start_process(self, id: int) -> None:  # noqa: A002 - YAFS name
@@ -697,6 +462,27 @@ class Sim:
             self.stop_process(des)
             del self.alloc_DES[des]
 
+    def undeploy_all_modules(self, app_name: Any, service_name: str, idtopo: Any) -> None:
+        """Remove the replicas of ``service_name`` on node ``idtopo``.
+
+        ``yafs3`` engine: YAFS3's loop, which removes from the list it walks and so skips
+        the replica after each one it removes (two adjacent replicas on the node: one
+        stays). ``direct`` engine: every replica on the node is removed.
+        """
+        on_node = [des for des, node in self.alloc_DES.items() if node == idtopo]
+        replicas = self.alloc_module[app_name][service_name]
+        if self._yafs3:
+            for des in replicas:
+                if des in on_node:
+                    replicas.remove(des)
+                    self.stop_process(des)
+                    del self.alloc_DES[des]
+            return
+        for des in [d for d in replicas if d in on_node]:
+            replicas.remove(des)
+            self.stop_process(des)
+            del self.alloc_DES[des]
+
     def undeploy_source(self, des: int) -> None:
         """Remove one source."""
         if des in self.alloc_source:
@@ -705,7 +491,31 @@ class Sim:
             del self.alloc_DES[des]
 
     def remove_node(self, id_node_topology: Any) -> None:
-        """Stop every process on a node and remove the node from the topology."""
+        """Stop processes on a node and remove the node from the topology.
+
+        ``yafs3`` engine: as YAFS3, only the *first* process found on the node is stopped
+        and forgotten (the others keep their allocation; sources stay in
+        :attr:`alloc_source`). ``direct`` engine: every process on the node.
+
+        Raises:
+            networkx.NetworkXError: the node is not in the graph (as YAFS).
+        """
+        if self._yafs3:
+            removed = []
+            for des, node in self.alloc_DES.items():
+                if node == id_node_topology:
+                    removed.append(des)
+                    break
+            for des in removed:
+                self.stop_process(des)
+                del self.alloc_DES[des]
+            for modules in self.alloc_module.values():
+                for replicas in modules.values():
+                    for des in removed:
+                        if des in replicas:
+                            replicas.remove(des)
+            self.topology.G.remove_node(id_node_topology)
+            return
         removed = [des for des, node in self.alloc_DES.items() if node == id_node_topology]
         for des in removed:
             self.stop_process(des)
@@ -717,8 +527,22 @@ class Sim:
         self.topology.G.remove_node(id_node_topology)
 
     def get_alloc_entities(self) -> dict[Any, list[str]]:
-        """Node -> list of ``"app#module"`` deployed on it."""
+        """Node -> list of ``"app#module"`` deployed on it.
+
+        ``yafs3`` engine: YAFS3's table, whose sources are listed on the node they were
+        deployed on (``alloc_source[des]["id"]``) and which raises ``KeyError`` when that
+        node is no longer in the graph. ``direct`` engine: sources on their current node,
+        nodes outside the graph added as needed.
+        """
         entities: dict[Any, list[str]] = {node: [] for node in self.topology.G.nodes}
+        if self._yafs3:
+            for src in self.alloc_source.values():
+                entities[src["id"]].append(f"{src['app']}#{src['module']}")
+            for app, modules in self.alloc_module.items():
+                for module, replicas in modules.items():
+                    for des in replicas:
+                        entities[self.alloc_DES[des]].append(f"{app}#{module}")
+            return entities
         for des, src in self.alloc_source.items():
             entities.setdefault(self.alloc_DES.get(des, src["id"]), []).append(f"{src['app']}#{src['module']}")
         for app, modules in self.alloc_module.items():
@@ -756,7 +580,9 @@ class Sim:
         """Run the simulation until time ``until`` (events at exactly ``until`` do not run).
 
         The first call performs the populations' and placements' initial allocations (in
-        that order, as YAFS does). Later calls continue the same simulation. Result files
+        that order, as YAFS does); with the ``yafs3`` engine it then starts YAFS3's
+        internal stop monitor and prints the assignment table, as YAFS3's ``run`` does.
+        Later calls continue the same simulation (YAFS3 supports one call). Result files
         are flushed and closed at the end of each call (a later call appends).
 
         Args:
@@ -767,6 +593,11 @@ class Sim:
         self.metrics.open()
         if not self._initialised:
             self._initialised = True
+            if self._yafs3:
+                # YAFS's network process starts first, with an empty busy-link table.
+                self._net_alive = True
+                self._net_waiting = True
+                self.last_busy_time = {}
             for policy in self.population_policy.values():
                 for app_name in policy["apps"]:
                     policy["population_policy"].initial_allocation(self, app_name)
@@ -776,9 +607,68 @@ class Sim:
                     validate(self.apps)
                 for app_name in policy["apps"]:
                     policy["placement_policy"].initial_allocation(self, app_name)
+            if self._yafs3:
+                self.until = until
+                self.env.process(self._stop_monitor_process())
+                self.print_debug_assignaments()
         self.until = until
         try:
             if not test_initial_deploy:
-                self.env.run(until)
+                self._run_events(until)
         finally:
             self.metrics.close()
+
+    def _run_events(self, until: float | None) -> None:
+        """simpy's ``Environment.run(until)``, step for step, in one loop.
+
+        An engine callback whose last act is to schedule a zero-delay event while nothing
+        else is due at this instant leaves it in ``_inline_fn``/``_inline_ev`` (with the id
+        it would have had) instead of pushing it: it is the next event either way, so the
+        loop runs it at once. Should anything reach the queue for this instant in between,
+        the event goes back into the queue and the usual order decides.
+        """
+        env = self.env
+        queue = self._queue
+        if until is not None:
+            at = until if isinstance(until, int) else float(until)
+            if at <= env._now:
+                raise ValueError(f"until ({at}) must be greater than the current simulation time")
+            # As simpy: an urgent event at ``until``, scheduled before anything it stops.
+            heappush(queue, (env._now + (at - env._now), URGENT, next(self._eid), _Until()))
+        pop = heappop
+        self._inline_fn = None
+        try:
+            while True:
+                fn = self._inline_fn
+                if fn is not None:
+                    self._inline_fn = None
+                    event = self._inline_ev
+                    now = env._now
+                    if queue and queue[0][0] <= now and queue[0] < (now, NORMAL, self._inline_eid):
+                        # Something was queued for this instant meanwhile and goes first.
+                        heappush(queue, (now, NORMAL, self._inline_eid, _Inline(fn, event)))
+                    else:
+                        fn(event)
+                        continue
+                if not queue:
+                    break
+                env._now, _, _, event = pop(queue)
+                callbacks = event.callbacks
+                if callbacks.__class__ is tuple:
+                    # The engines' own events: one callback, set again before each push.
+                    callbacks[0](event)
+                    continue
+                event.callbacks = None
+                for callback in callbacks:
+                    callback(event)
+                if not event._ok and not hasattr(event, "_defused"):
+                    exc = type(event._value)(*event._value.args)
+                    exc.__cause__ = event._value
+                    raise exc
+        except _StopRun:
+            pass
+        finally:
+            if self._inline_fn:
+                heappush(queue, (env._now, NORMAL, self._inline_eid,
+                                 _Inline(self._inline_fn, self._inline_ev)))
+            self._inline_fn = False

@@ -18,21 +18,37 @@ EVENT_COLUMNS = (
 )
 LINK_COLUMNS = ("id", "type", "src", "dst", "app", "latency", "message", "ctime", "size", "buffer")
 
-# Columns that can hold text (names, node ids); the others are numbers.
-_EVENT_TEXT = itemgetter(1, 2, 3, 4, 7, 8, 9)
-_LINK_TEXT = itemgetter(1, 2, 3, 4, 6)
+# Columns that can hold text or None (names, node and process ids, ids of messages); the
+# others are always numbers, which ``%s`` writes exactly as ``csv`` does.
+_EVENT_TEXT = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9)
+_LINK_TEXT = (0, 1, 2, 3, 4, 6, 8)
 _EVENT_FORMAT = ",".join(["%s"] * len(EVENT_COLUMNS)) + "\r\n"
 _LINK_FORMAT = ",".join(["%s"] * len(LINK_COLUMNS)) + "\r\n"
 _SPECIAL = frozenset(',"\r\n')
 
 
-def _plain(rows: list[tuple[Any, ...]], text_columns: itemgetter) -> bool:
-    """True if no text field needs CSV quoting (so ``%s`` formatting equals ``csv``'s output)."""
-    seen = set(map(text_columns, rows))
-    values = {value for row in seen for value in row}
-    for value in values:
-        if value is None or (isinstance(value, str) and (value == "" or not _SPECIAL.isdisjoint(value))):
-            return False
+_NUMBERS = frozenset((int, float, bool))
+
+
+def _plain(rows: list[tuple[Any, ...]], columns: tuple[int, ...], safe: set[Any]) -> bool:
+    """True if ``%s`` formatting of ``rows`` gives exactly ``csv.writer``'s output: no None
+    (csv writes nothing), and no text that csv would quote (commas, quotes, line breaks).
+
+    ``safe`` holds values already found harmless (names, node ids); it grows, so each
+    distinct value is examined once per file.
+    """
+    for column in columns:
+        values = set(map(itemgetter(column), rows))
+        if _NUMBERS.issuperset(map(type, values)):
+            continue
+        for value in values - safe:
+            if value is None:
+                return False
+            text = value if type(value) is str else str(value)
+            if text == "" or not _SPECIAL.isdisjoint(text):
+                return False
+            if type(value) is not float:
+                safe.add(value)
     return True
 
 
@@ -47,6 +63,15 @@ class Metrics:
         enabled: False keeps no rows at all (for runs that only need request outcomes).
         buffer_rows: rows kept in memory before writing.
     """
+
+    # YAFS3's names of the derived time columns and of the two energy views (``Stats``).
+    TIME_LATENCY = "time_latency"
+    TIME_WAIT = "time_wait"
+    TIME_RESPONSE = "time_response"
+    TIME_SERVICE = "time_service"
+    TIME_TOTAL_RESPONSE = "time_total_response"
+    WATT_SERVICE = "byService"
+    WATT_UPTIME = "byUptime"
 
     def __init__(
         self,
@@ -64,6 +89,7 @@ class Metrics:
         self._files: tuple[Any, Any] | None = None
         self._writers: tuple[Any, Any] | None = None
         self._started = False
+        self._safe_values: set[Any] = set()
 
     @property
     def event_path(self) -> str:
@@ -113,7 +139,7 @@ class Metrics:
             if not rows:
                 continue
             # Same bytes as csv.writer, faster: plain %s formatting when nothing needs quoting.
-            if _plain(rows, text_columns):
+            if _plain(rows, text_columns, self._safe_values):
                 self._files[index].write("".join([line_format % row for row in rows]))
             else:
                 self._writers[index].writerows(rows)

@@ -29,9 +29,12 @@ class Placement:
     Args:
         name: the placement's name (one control process per name).
         activation_dist: when to call :meth:`run`; ``None`` = never.
+        logger: the placement's logger (YAFS's ``self.logger``; default: this module's).
     """
 
-    def __init__(self, name: str, activation_dist: Distribution | None = None) -> None:
+    def __init__(self, name: str, activation_dist: Distribution | None = None,
+                 logger: logging.Logger | None = None) -> None:
+        self.logger = logger or logging.getLogger(__name__)
         self.name = name
         self.activation_dist = activation_dist
         self.scaleServices: dict[str, int] = {}
@@ -50,6 +53,7 @@ class Placement:
 
     def run(self, sim: Sim) -> None:
         """Change the deployment during the simulation (override)."""
+        self.logger.debug("Activating - RUN - Placement")
 
 
 class JSONPlacement(Placement):
@@ -70,8 +74,9 @@ class JSONPlacement(Placement):
         json: dict[str, Any] | str | os.PathLike[str],
         name: str = "JSONPlacement",
         activation_dist: Distribution | None = None,
+        logger: logging.Logger | None = None,
     ) -> None:
-        super().__init__(name, activation_dist)
+        super().__init__(name, activation_dist, logger)
         data, self.source = read_json_input(json, "placement")
         root = require_mapping(data, self.source, "")
         self.data = root
@@ -105,3 +110,72 @@ class JSONPlacement(Placement):
         for entry, _module, app, _node in self._entries:
             if app not in apps:
                 raise YAFSInputError(self.source, entry, "app", f"names unknown application {app!r}")
+
+
+class JSONPlacementOnCloud(JSONPlacement):
+    """Every module named in a placement JSON is deployed on one node, ``idCloud`` (YAFS3):
+    the entries' ``id_resource`` is ignored.
+
+    Args:
+        json: the parsed JSON or a path to the file.
+        idCloud: the node that receives every replica.
+        name: the placement's name.
+        activation_dist: as in :class:`Placement`.
+    """
+
+    def __init__(self, json: dict[str, Any] | str | os.PathLike[str], idCloud: Any,  # noqa: N803
+                 name: str = "JSONPlacementOnCloud", activation_dist: Distribution | None = None,
+                 logger: logging.Logger | None = None) -> None:
+        super().__init__(json, name, activation_dist, logger)
+        self.idCloud = idCloud
+
+    def initial_allocation(self, sim: Sim, app_name: Any) -> None:
+        for entry, module, app, _node in self._entries:
+            if app != app_name:
+                continue
+            services = sim.apps[app_name].services
+            if module not in services:
+                raise YAFSInputError(
+                    self.source, entry, "module_name",
+                    f"app {app_name!r} has no module {module!r} with a service",
+                )
+            sim.deploy_module(app_name, module, services[module], [self.idCloud])
+
+
+class ClusterPlacement(Placement):
+    """YAFS3's example placement: ``scaleServices`` replicas of ``Coordinator`` and of
+    ``Calculator`` on the nodes whose ``model`` is ``"Cluster"``, and ``Client`` on every
+    node whose ``model`` is ``"m-"`` (other modules are not placed)."""
+
+    def initial_allocation(self, sim: Sim, app_name: Any) -> None:
+        cluster = sim.topology.find_IDs({"model": "Cluster"})
+        mobiles = sim.topology.find_IDs({"model": "m-"})
+        services = sim.apps[app_name].services
+        for module in services:
+            if module in ("Coordinator", "Calculator"):
+                for _ in range(self.scaleServices.get(module, 0)):
+                    sim.deploy_module(app_name, module, services[module], cluster)
+            elif module == "Client":
+                sim.deploy_module(app_name, module, services[module], mobiles)
+
+
+class EdgePlacement(Placement):
+    """YAFS3's example placement: ``Coordinator`` on the ``"Cluster"`` nodes,
+    ``Calculator`` on the ``"d-"`` nodes, ``Client`` on the ``"m-"`` nodes (one replica per
+    node; YAFS3 also prints each module name, which this does not)."""
+
+    def initial_allocation(self, sim: Sim, app_name: Any) -> None:
+        where = {"Coordinator": sim.topology.find_IDs({"model": "Cluster"}),
+                 "Calculator": sim.topology.find_IDs({"model": "d-"}),
+                 "Client": sim.topology.find_IDs({"model": "m-"})}
+        services = sim.apps[app_name].services
+        for module in services:
+            if module in where:
+                sim.deploy_module(app_name, module, services[module], where[module])
+
+
+class NoPlacementOfModules(Placement):
+    """Places nothing: for applications made only of pure sources and sinks (YAFS3)."""
+
+    def initial_allocation(self, sim: Sim, app_name: Any) -> None:
+        return None

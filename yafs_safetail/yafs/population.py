@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 from typing import TYPE_CHECKING, Any
 
@@ -28,9 +29,12 @@ class Population:
     Args:
         name: the population's name (one control process per name).
         activation_dist: when to call :meth:`run`; ``None`` = never.
+        logger: the population's logger (YAFS's ``self.logger``; default: this module's).
     """
 
-    def __init__(self, name: str, activation_dist: Distribution | None = None) -> None:
+    def __init__(self, name: str, activation_dist: Distribution | None = None,
+                 logger: logging.Logger | None = None) -> None:
+        self.logger = logger or logging.getLogger(__name__)
         self.name = name
         self.activation_dist = activation_dist
         self.src_control: list[dict[str, Any]] = []
@@ -55,26 +59,28 @@ class Population:
 
     def run(self, sim: Sim) -> None:
         """Change the population during the simulation (override)."""
+        self.logger.debug("Activating - RUN - Population")
 
 
 class Statical(Population):
-    """Sinks and sources on every node whose ``model`` attribute matches a rule.
+    """Sinks and sources on every entity whose ``model`` attribute matches a rule.
 
-    Nodes are visited in graph order; on each node its sinks are deployed before its
-    sources (YAFS3's order, which fixes the process ids).
+    As YAFS3: entities are read from ``sim.topology.nodeAttributes`` (the entities of
+    :meth:`Topology.load`, in file order; a topology given as a bare graph has none), and
+    on each entity its sinks are deployed before its sources, which fixes the process ids.
+    A rule's ``module`` may also be a list of sink modules (YAFS3 takes one name).
     """
 
     def initial_allocation(self, sim: Sim, app_name: Any) -> None:
-        for node, attrs in sim.topology.G.nodes(data=True):
-            model = attrs.get("model")
+        for node, entity in sim.topology.nodeAttributes.items():
             for ctrl in self.sink_control:
-                if model == ctrl["model"]:
+                if entity["model"] == ctrl["model"]:
                     modules = ctrl["module"]
                     for module in modules if isinstance(modules, list) else [modules]:
                         for _ in range(ctrl["number"]):
                             sim.deploy_sink(app_name, node=node, module=module)
             for ctrl in self.src_control:
-                if model == ctrl["model"]:
+                if entity["model"] == ctrl["model"]:
                     for _ in range(ctrl["number"]):
                         sim.deploy_source(
                             app_name, id_node=node, msg=ctrl["message"], distribution=ctrl["distribution"]
@@ -103,8 +109,9 @@ class JSONPopulation(Population):
         iteration: int = 1,
         name: str = "JSONPopulation",
         activation_dist: Distribution | None = None,
+        logger: logging.Logger | None = None,
     ) -> None:
-        super().__init__(name, activation_dist)
+        super().__init__(name, activation_dist, logger)
         data, self.source = read_json_input(json, "population")
         root = require_mapping(data, self.source, "")
         self.data = root

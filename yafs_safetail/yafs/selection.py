@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import random
 from typing import TYPE_CHECKING, Any
 
 import networkx as nx
@@ -33,6 +34,10 @@ class Selection:
     def __init__(self, logger: logging.Logger | None = None) -> None:
         if logger is not None:
             self.logger = logger
+        # YAFS3's instance attributes (unused by the core, kept for scripts that read them).
+        self.transmit = 0.0
+        self.lat_acc = 0.0
+        self.propagation = 0.0
 
     def get_path(
         self,
@@ -56,8 +61,11 @@ class Selection:
             alloc_module: app -> module -> list of process ids.
             traffic: per-directed-link time until which the link is busy (YAFS link queues).
             from_des: the sending process id.
+
+        The base class sends nothing (``([], [])``), as YAFS3's does.
         """
-        raise NotImplementedError("Selection subclasses must implement get_path")
+        self.logger.debug("Selection")
+        return [], []
 
     def get_path_from_failure(
         self,
@@ -81,15 +89,38 @@ class Selection:
         """Called once every copy of a request this selection dispatched has settled."""
 
 
-class First_ShortestPath(Selection):  # noqa: N801 - YAFS name
-    """Send each message to the first replica of its destination module by a shortest path."""
+class OneRandomPath(Selection):
+    """One random simple path to each replica of the destination module (a copy to each).
+
+    The path is drawn from ``networkx.all_simple_paths`` with Python's global ``random``
+    (YAFS3's choice of generator). YAFS3's own class looks replicas up by
+    ``message.app_name`` and ``alloc_module[des]``, which raises ``KeyError`` (so YAFS3
+    drops the message); this one does what that class's docstring says.
+    """
 
     def get_path(self, sim, app_name, message, topology_src, alloc_DES, alloc_module, traffic, from_des):
-        replicas = alloc_module[app_name].get(message.dst, [])
-        for des in replicas:
-            try:
-                path = nx.shortest_path(sim.topology.G, source=topology_src, target=alloc_DES[des])
-            except (nx.NetworkXNoPath, nx.NodeNotFound):
+        paths = []
+        dst_des = []
+        for des in alloc_module[app_name][message.dst]:
+            candidates = list(nx.all_simple_paths(sim.topology.G, source=topology_src, target=alloc_DES[des]))
+            if not candidates:
                 continue
-            return [list(path)], [des]
-        return [], []
+            paths.append(candidates[random.randint(0, len(candidates) - 1)])
+            dst_des.append(des)
+        return paths, dst_des
+
+
+class First_ShortestPath(Selection):  # noqa: N801 - YAFS name
+    """A shortest path to the *last* replica of the destination module (YAFS3's loop keeps
+    the path of the last replica it visits; it also prints them, which this does not).
+
+    ``networkx`` errors (no path, node not found) propagate, as in YAFS3.
+    """
+
+    def get_path(self, sim, app_name, message, topology_src, alloc_DES, alloc_module, traffic, from_des):
+        best_path: list[list[Any]] = []
+        best_des: list[Any] = []
+        for des in alloc_module[app_name][message.dst]:
+            best_path = [list(nx.shortest_path(sim.topology.G, source=topology_src, target=alloc_DES[des]))]
+            best_des = [des]
+        return best_path, best_des
