@@ -71,3 +71,25 @@ def test_sigterm_becomes_a_clean_exit(capsys: pytest.CaptureFixture[str]) -> Non
     finally:
         signal.signal(signal.SIGTERM, previous)
     assert capsys.readouterr().err == "error: terminated; no partial results were kept\n"
+
+
+def test_sigterm_during_library_code_that_turns_it_into_another_error(capsys: pytest.CaptureFixture[str]) -> None:
+    """An import interrupted by SIGTERM can surface as an ImportError (seen with Keras): it is
+    still reported as a termination, not as a traceback."""
+    import os
+    import signal
+
+    from yafs_safetail.cli import EXIT_TERMINATED
+
+    def import_interrupted(argv):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+        except KeyboardInterrupt as interrupted:
+            raise ImportError("To use Keras, you need to have `optree` installed") from interrupted
+
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        assert run_cli(import_interrupted, []) == EXIT_TERMINATED
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert capsys.readouterr().err == "error: terminated; no partial results were kept\n"

@@ -25,7 +25,11 @@ class Terminated(KeyboardInterrupt):
     temporary folders go, exactly as for Ctrl-C."""
 
 
+_terminating = threading.Event()
+
+
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    _terminating.set()
     raise Terminated()
 
 
@@ -44,20 +48,23 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _raise_terminated)
+    _terminating.clear()
     try:
         code = main(argv)
-    except (ValueError, OSError) as error:
-        if os.environ.get("YAFS_SAFETAIL_DEBUG"):
+    except BaseException as error:
+        # SIGTERM raised inside library code may come out as another exception (an import
+        # interrupted by it becomes an ImportError): the flag says what really happened.
+        if isinstance(error, Terminated) or _terminating.is_set():
+            print("error: terminated; no partial results were kept", file=sys.stderr)
+            return EXIT_TERMINATED
+        if isinstance(error, KeyboardInterrupt):
+            print("error: interrupted; no partial results were kept", file=sys.stderr)
+            return 130
+        if not isinstance(error, ValueError | OSError) or os.environ.get("YAFS_SAFETAIL_DEBUG"):
             raise
         message = " ".join(str(error).split()) or type(error).__name__
         print(f"error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except Terminated:
-        print("error: terminated; no partial results were kept", file=sys.stderr)
-        return EXIT_TERMINATED
-    except KeyboardInterrupt:
-        print("error: interrupted; no partial results were kept", file=sys.stderr)
-        return 130
     return 0 if code is None else int(code)
 
 
@@ -81,7 +88,7 @@ def _script_main(relative: str) -> Callable[[Sequence[str] | None], int | None]:
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.main  # type: ignore[no-any-return]
+    return module.main
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -17,10 +17,11 @@ from typing import Any
 from simpy.events import NORMAL
 
 from yafs_safetail.yafs._records import _Lineage, _Replica, _Request, _Source, _Wake
+from yafs_safetail.yafs._state import SimState
 from yafs_safetail.yafs.application import Message
 
 
-class DirectEngine:
+class DirectEngine(SimState):
     """Hot path of the ``direct`` engine (a mixin of ``Sim``; see the module docstring)."""
 
     # ----------------------------------------------------------------- deployment
@@ -303,7 +304,9 @@ class DirectEngine:
 
 
     def _schedule_source(self, source: _Source) -> None:
-        self.env.schedule(_Wake(self._source_tick_callbacks, source), NORMAL, source.distribution.next())
+        # _Wake is a duck-typed simpy event (callbacks, _ok, _value), cheaper than simpy.Event.
+        self.env.schedule(_Wake(self._source_tick_callbacks, source), NORMAL,  # type: ignore[arg-type]
+                          source.distribution.next())
 
     def _on_source_tick(self, event: _Wake) -> None:
         source = event.item

@@ -29,12 +29,13 @@ from typing import Any
 from simpy.events import NORMAL, URGENT
 
 from yafs_safetail.yafs._records import _Lineage, _Proc, _Request, _Src, _Wake
+from yafs_safetail.yafs._state import SimState
 from yafs_safetail.yafs.application import Message
 from yafs_safetail.yafs.selection import Selection
 
 # YAFS compares the selection's DES list with these literals.
 _NO_DES = [None]
-_EMPTY_DES = [[]]
+_EMPTY_DES: list[list[Any]] = [[]]
 
 
 _WAIT, _TRIG, _BUSY, _DONE = _Proc.WAIT, _Proc.TRIG, _Proc.BUSY, _Proc.DONE
@@ -45,7 +46,7 @@ def _copy_list(value: Any) -> Any:
     return value.copy() if type(value) is list else copy.copy(value)
 
 
-class YAFS3Engine:
+class YAFS3Engine(SimState):
     """Hot path of the ``yafs3`` engine (a mixin of ``Sim``; see the module docstring)."""
 
     # ----------------------------------------------------------------- deployment
@@ -265,7 +266,7 @@ class YAFS3Engine:
                         text = self._float_texts[latency] = repr(latency)
                 else:
                     text = latency
-                start = now
+                start: Any = now  # a number, or its text when it is written again below
                 if first_hop and now.__class__ is float and now and now == msg.timestamp:
                     # The emission time: written again as the message's time_emit.
                     start = msg._emit_text = repr(now)
@@ -465,7 +466,7 @@ class YAFS3Engine:
             alloc = self.alloc_DES
             if proc.module in self.apps[app_name].get_sink_modules():
                 id_node = alloc[des]
-                service = 0
+                service: Any = 0  # YAFS writes a sink's zero service as the integer 0
             else:
                 id_node = alloc[des]
                 if self._y_inline_service:
@@ -499,7 +500,8 @@ class YAFS3Engine:
                         service_text = self._float_texts[service] = repr(service)
                 else:
                     service_text = service
-                reception = float(msg.timestamp_rec)
+                reception: Any = float(msg.timestamp_rec)  # a number, or its text
+                start: Any
                 if reception == now and now.__class__ is float and now:
                     reception = start = repr(now)
                 else:

@@ -44,7 +44,11 @@ class Message:
     """
 
     _ok = True
-    callbacks = None
+    callbacks: Any = None
+    # Set by the engines while the message is in flight (see the class docstring).
+    _hop: Any
+    _at: Any
+    _emit_text: str
 
     def __init__(
         self,
@@ -52,7 +56,7 @@ class Message:
         src: str,
         dst: str,
         instructions: float = 0,
-        bytes: int = 0,  # noqa: A002 - YAFS keyword name
+        bytes: float = 0,  # noqa: A002 - YAFS keyword name
         broadcasting: bool = False,
     ) -> None:
         self.name = name

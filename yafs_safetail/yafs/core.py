@@ -22,7 +22,7 @@ import random
 from collections import deque
 from collections.abc import Callable
 from heapq import heappop, heappush
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import simpy
@@ -35,7 +35,7 @@ from yafs_safetail.yafs.application import Application, Message
 from yafs_safetail.yafs.distribution import Distribution, deterministic_distribution
 from yafs_safetail.yafs.hooks import LinkDelay, ServiceModel, YAFSLinkDelay, YAFSServiceModel
 from yafs_safetail.yafs.metrics import Metrics
-from yafs_safetail.yafs.outcomes import CopyOutcome, RequestOutcome
+from yafs_safetail.yafs.outcomes import CopyOutcome, CopyStatus, RequestOutcome
 from yafs_safetail.yafs.placement import Placement
 from yafs_safetail.yafs.population import Population
 from yafs_safetail.yafs.selection import Selection
@@ -272,7 +272,8 @@ class Sim(YAFS3Engine, DirectEngine):
             self._complete(request)
 
     def _complete(self, request: _Request) -> None:
-        copies = [CopyOutcome(lin.copy_index, lin.dst_node, lin.des, lin.status, lin.time_end)
+        # Every lineage of a complete request has settled: its status is set.
+        copies = [CopyOutcome(lin.copy_index, lin.dst_node, lin.des, cast(CopyStatus, lin.status), lin.time_end)
                   for lin in request.lineages]
         first = None
         for copy in copies:

@@ -10,7 +10,7 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Literal, overload
 
 
 class YAFSInputError(ValueError):
@@ -98,6 +98,16 @@ def require_id(container: Mapping[str, Any], key: str, source: str, entry: str) 
             source, entry, key, f"expected an integer or string id, got {type(value).__name__}"
         )
     return value
+
+
+@overload
+def require_number(container: Mapping[str, Any], key: str, source: str, entry: str, *,
+                   positive: bool = ..., required: Literal[True] = ...) -> float | int: ...
+
+
+@overload
+def require_number(container: Mapping[str, Any], key: str, source: str, entry: str, *,
+                   positive: bool = ..., required: bool) -> float | int | None: ...
 
 
 def require_number(
