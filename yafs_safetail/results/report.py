@@ -1,0 +1,257 @@
+"""Markdown reports of results: a run's ``summary.md``, cross-seed tables, and the writers that
+put a run's files in its folder."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from yafs_safetail.methods.registry import ORACLE, SAFETAIL, sort_methods
+from yafs_safetail.results.files import (
+    PERCENTILES,
+    RUN_FILE,
+    SUMMARY_CSV_FILE,
+    SUMMARY_MD_FILE,
+    RunMetadata,
+    _csv_text,
+    read_requests_csv,
+    read_run_json,
+    write_requests_csv,
+    write_run_json,
+    write_text_atomic,
+)
+from yafs_safetail.results.paper import PERCENTILE_NAMES, check_claims, speedup_table
+from yafs_safetail.results.stats import summarize
+
+# --------------------------------------------------------------------------------------------
+# Markdown
+
+
+def _fmt(value: float, digits: int = 3) -> str:
+    return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else (
+        f"{value:.{digits}f}"
+    )
+
+
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines.extend("| " + " | ".join(row) + " |" for row in rows)
+    return lines
+
+
+def _speedup_lines(table: pd.DataFrame, method: str, reference: str | None) -> list[str]:
+    header = ["comparison"]
+    for percentile in PERCENTILES:
+        name = PERCENTILE_NAMES[percentile]
+        header += [f"{name} ours", f"{name} paper"]
+    rows = []
+    pairs = table[["method", "reference"]].drop_duplicates().itertuples(index=False)
+    for pair_method, pair_reference in pairs:
+        if pair_method != method or (reference is not None and pair_reference != reference):
+            continue
+        part = table[(table["method"] == pair_method) & (table["reference"] == pair_reference)]
+        row = [f"{pair_method} over {pair_reference}"]
+        for percentile in PERCENTILES:
+            entry = part[part["percentile"] == percentile].iloc[0]
+            row += [_fmt(entry["ours"], 2), _fmt(entry["paper"], 2)]
+        rows.append(row)
+    return markdown_table(header, rows) if rows else []
+
+
+def _stated_lines(table: pd.DataFrame) -> list[str]:
+    statements = sorted({s for s in table["stated"] if s})
+    return [f"- {s}" for s in statements]
+
+
+def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> str:
+    """The run's markdown report: latency table, the paper's ratios, the paper's claims.
+
+    Args:
+        summary: from :func:`summarize`.
+        run: the run's metadata (names the use case, preset and seed; enables paper columns).
+
+    Returns:
+        Markdown text ending with a newline.
+    """
+    use_case = run.use_case if run else None
+    if run:
+        title = (f"# SafeTail results: use case {run.use_case} ({run.use_case_name}), "
+                 f"preset `{run.preset}`, seed {run.seed}")
+    else:
+        title = "# SafeTail results (no run.json: use case, preset and seed unknown)"
+    lines = [title, ""]
+    if use_case is not None and SAFETAIL in set(summary["method"]):
+        from yafs_safetail.results.fidelity import run_line  # fidelity reads this module's tables
+
+        lines += [run_line(summary, use_case), ""]
+    n_test = ", ".join(f"{m} {n}" for m, n in zip(summary["method"], summary["n_requests"],
+                                                   strict=True))
+    lines += [
+        "Test phase only. Latencies in seconds; percentiles by numpy's linear interpolation. "
+        f"Test requests per method: {n_test or 'none'}.",
+        "",
+    ]
+    rows = [
+        [m, _fmt(r.p50_s), _fmt(r.p90_s), _fmt(r.p95_s), _fmt(r.p99_s),
+         _fmt(r.mean_access_rate), _fmt(r.mean_n_selected, 2), _fmt(r.mean_target_s),
+         _fmt(r.target_met_rate), _fmt(r.fallback_rate)]
+        for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)
+    ]
+    lines += markdown_table(
+        ["method", "median", "p90", "p95", "p99", "mean access rate", "mean servers",
+         "mean target", "target met", "fallback rate"],
+        rows,
+    )
+    table = speedup_table(summary, use_case)
+    lines += ["", "## Oracle vs SafeTail", ""]
+    oracle_lines = _speedup_lines(table, ORACLE, SAFETAIL)
+    if oracle_lines:
+        lines += [
+            "Oracle's speed-up over SafeTail = SafeTail latency / Oracle latency "
+            "(> 1: Oracle faster). \"ours\" is this run; \"paper\" is the paper's stated number "
+            "in the same direction (— where the paper states none; where it states SafeTail's "
+            "speed-up over Oracle instead, the column shows the reciprocal).",
+            "",
+            *oracle_lines,
+        ]
+    else:
+        lines.append("Not available: the run lacks SafeTail or Oracle test rows.")
+    lines += ["", "## SafeTail vs baselines", ""]
+    baseline_lines = _speedup_lines(table, SAFETAIL, None)
+    if baseline_lines:
+        lines += [
+            "SafeTail's speed-up over a baseline = baseline latency / SafeTail latency "
+            "(> 1: SafeTail faster). \"ours\" is this run; \"paper\" is the paper's stated "
+            "number (— where the paper states none).",
+            "",
+            *baseline_lines,
+        ]
+    else:
+        lines.append("Not available: the run lacks SafeTail or baseline test rows.")
+    stated = _stated_lines(table)
+    if stated:
+        lines += ["", "The paper's statements behind the \"paper\" columns (facts.md):", "",
+                  *stated]
+    if use_case is not None:
+        claims = check_claims(summary, use_case)
+        if not claims.empty:
+            lines += ["", "## The paper's qualitative statements", "",
+                      "Where the paper is vague, our reading is written into the statement "
+                      "(test phase; target = the average target latency).", ""]
+            verdict = {True: "yes", False: "no", None: "cannot check"}
+            lines += markdown_table(["paper says", "holds in this run"],
+                            [[t, verdict[h]] for t, h in zip(claims["text"], claims["holds"],
+                                                             strict=True)])
+    return "\n".join(lines) + "\n"
+
+
+def write_summary(
+    directory: str | os.PathLike[str],
+    requests: pd.DataFrame | None = None,
+    run: RunMetadata | None = None,
+) -> pd.DataFrame:
+    """Write ``summary.csv`` and ``summary.md`` into a results folder.
+
+    Args:
+        directory: the results folder.
+        requests: the requests table; read from ``requests.csv`` when None.
+        run: the run's metadata; read from ``run.json`` when None and the file exists.
+
+    Returns:
+        The summary DataFrame that was written.
+    """
+    folder = Path(directory)
+    if requests is None:
+        requests = read_requests_csv(folder)
+    if run is None and (folder / RUN_FILE).is_file():
+        run = read_run_json(folder)
+    summary = summarize(requests, preset=run.preset if run else "", beta=run.beta if run else None)
+    write_text_atomic(folder / SUMMARY_CSV_FILE, _csv_text(summary))
+    write_text_atomic(folder / SUMMARY_MD_FILE, summary_markdown(summary, run))
+    return summary
+
+
+def write_results(
+    directory: str | os.PathLike[str], requests: pd.DataFrame, run: RunMetadata
+) -> pd.DataFrame:
+    """Write a run's ``requests.csv``, ``run.json``, ``summary.csv`` and ``summary.md``.
+
+    Args:
+        directory: the results folder (must exist).
+        requests: the requests table.
+        run: the run's metadata.
+
+    Returns:
+        The summary DataFrame.
+    """
+    write_requests_csv(requests, directory)
+    write_run_json(directory, run)
+    return write_summary(directory, requests, run)
+
+
+
+def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
+    """Markdown table of :func:`aggregate_summaries`: one row per method, ``mean [95% interval]``.
+
+    Args:
+        stats: from :func:`aggregate_summaries`.
+        digits: decimals shown.
+
+    Returns:
+        Markdown text ending with a newline.
+    """
+    header = ["method", "seeds", *[PERCENTILE_NAMES[p] + " (s)" for p in PERCENTILES],
+              "mean access rate", "mean target (s)"]
+    metrics = [f"p{p}_s" for p in PERCENTILES] + ["mean_access_rate", "mean_target_s"]
+    rows = []
+    for method in sort_methods(stats["method"]):
+        part = stats[stats["method"] == method].set_index("metric")
+        row = [method, str(int(part["n_seeds"].max()))]
+        for metric in metrics:
+            cell = _fmt(part.loc[metric, "mean"], digits)
+            if not math.isnan(part.loc[metric, "ci_low"]):
+                cell += (f" [{part.loc[metric, 'ci_low']:.{digits}f}, "
+                         f"{part.loc[metric, 'ci_high']:.{digits}f}]")
+            row.append(cell)
+        rows.append(row)
+    lines = ["Test phase; mean over seeds [95% bootstrap interval over seeds].", "",
+             *markdown_table(header, rows)]
+    return "\n".join(lines) + "\n"
+
+
+def comparison_markdown(aggregated: pd.DataFrame, only_stated: bool = False) -> str:
+    """Side-by-side markdown table of our ratios (mean [95% interval]) and the paper's.
+
+    Args:
+        aggregated: from :func:`aggregate_speedups` (several use cases may be concatenated).
+        only_stated: keep only the rows for which the paper states a number.
+
+    Returns:
+        Markdown text ending with a newline.
+    """
+    rows = []
+    for entry in aggregated.itertuples(index=False):
+        if only_stated and math.isnan(entry.paper):
+            continue
+        ours = _fmt(entry.mean, 2)
+        if not math.isnan(entry.ci_low):
+            ours += f" [{entry.ci_low:.2f}, {entry.ci_high:.2f}]"
+        rows.append([
+            str(entry.use_case), f"{entry.method} over {entry.reference}",
+            PERCENTILE_NAMES[int(entry.percentile)], ours, str(entry.n_seeds),
+            _fmt(entry.paper, 2), entry.note,
+        ])
+    lines = [
+        "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
+        "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
+        "direction (facts.md).",
+        "",
+        *markdown_table(["use case", "comparison", "percentile", "ours", "seeds", "paper", "differs?"],
+                rows),
+    ]
+    return "\n".join(lines) + "\n"
+
