@@ -29,6 +29,13 @@ from yafs_safetail.runs.output import StagedOutput
 
 ENGINES = ("local", "ray")
 
+#: Each run of a campaign computes on one core: the campaign's parallelism is its runs, and a
+#: run whose TensorFlow and BLAS spread over every core would fight the other workers for
+#: them (measured: two such workers were slower than one, docs/campaigns.md). Set in every
+#: worker before TensorFlow loads; an explicit value in the environment wins.
+ONE_CORE_ENV = {"TF_NUM_INTRAOP_THREADS": "1", "TF_NUM_INTEROP_THREADS": "1", "OMP_NUM_THREADS": "1",
+                "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "TF_CPP_MIN_LOG_LEVEL": "2"}
+
 
 @dataclass(frozen=True)
 class RunTask:
@@ -85,7 +92,8 @@ def _init_worker() -> None:
     # workers with SIGTERM). SIGTERM unwinds the run, which removes its staging folder.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_terminated)
-    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
+    for name, value in ONE_CORE_ENV.items():
+        os.environ.setdefault(name, value)
     end_with_parent()
 
 
@@ -174,13 +182,16 @@ class RayEngine:
         self._ray = ray
         self._owns_runtime = not ray.is_initialized()
         if self._owns_runtime:
-            env = {"env_vars": {"TF_CPP_MIN_LOG_LEVEL": os.environ.get("TF_CPP_MIN_LOG_LEVEL", "2")}}
+            env = {"env_vars": {name: os.environ.get(name, value) for name, value in ONE_CORE_ENV.items()}}
             try:
                 if address:
                     ray.init(address=address, runtime_env=env, log_to_driver=False)
                 else:
+                    # Ray starts its workers at niceness 15 by default; on a machine shared
+                    # with anything else that starves the runs (measured: Ray two to three
+                    # times slower than the local engine), so this runtime's workers run at 0.
                     ray.init(num_cpus=workers or 1, runtime_env=env, log_to_driver=False,
-                             include_dashboard=False)
+                             include_dashboard=False, _system_config={"worker_niceness": 0})
             except (ConnectionError, RuntimeError) as error:
                 raise ValueError(f"--ray-address {address}: cannot connect: {one_line(error)}") from None
         cpus = int(ray.cluster_resources().get("CPU", 1))
