@@ -3,6 +3,8 @@
     python experiments/reproduce_all.py                          # UC 1-3, seeds 0-4, paper preset
     python experiments/reproduce_all.py --preset paper,paper-literal,tuned --seeds 0,1,2,3,4,5
     python experiments/reproduce_all.py --steps-scale 0.1 --out results/quick
+    python experiments/reproduce_all.py --workers 2                # two runs at a time
+    python experiments/reproduce_all.py --engine ray               # on Ray (see docs/campaigns.md)
 
 For every (use case, preset, seed) it runs exactly what ``run_usecase.py`` runs, into
 ``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` opens with the fidelity scorecard of
@@ -13,13 +15,18 @@ seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones w
 note where they differ, what the learner did (training rounds, final ε, servers used, target
 met, fallbacks) as the first place to look for why, and the figures of the first seed.
 Seeds must be distinct; the scorecard asks for at least five.
+
+The runs form one campaign (yafs_safetail/runs/campaign.py): rerunning the same command on the
+same --out resumes an interrupted reproduction and recomputes no finished run (a run folder
+records its run id, a hash of its configuration and the code version); a run that fails is
+reported and the others go on (exit status 1, no report). Progress goes to stderr and
+``OUT/campaign.log``, each run's state to ``OUT/campaign.json``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,8 +40,13 @@ from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.results import fidelity
-from yafs_safetail.runs.experiment import ExperimentConfig, ExperimentError, run_experiment
+from yafs_safetail.runs.campaign import add_engine_options, engine_free_command, run_campaign
+from yafs_safetail.runs.experiment import ExperimentError
+from yafs_safetail.runs.grid import expand
 from yafs_safetail.runs.output import refuse_protected
+
+#: Each run's folder under --out.
+RUN_FOLDER = "uc{use_case}-{preset}/seed{seed}"
 
 FIGURE_STEMS = (
     ("a", "fig_a_latency_comparison", "latency comparison with target and baselines"),
@@ -201,30 +213,33 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="output folder (default results/reproduce)")
     parser.add_argument("--no-figures", action="store_true", help="skip the per-run figures")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace earlier run folders and reports in --out")
+                        help="replace run folders in --out that hold another configuration")
+    add_engine_options(parser)
     args = parser.parse_args(argv)
     bad = [uc for uc in args.uc if uc not in USE_CASES]
     if bad:
         raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")
 
-    command = shlex.join(["python", "experiments/reproduce_all.py", *(sys.argv[1:] if argv is None else argv)])
+    command = engine_free_command("experiments/reproduce_all.py", sys.argv[1:] if argv is None else argv)
     refuse_protected(args.out)
-    args.out.mkdir(parents=True, exist_ok=True)
+    # Every (use case, preset, seed) is one run of a campaign: resumable, in parallel with
+    # --workers, each run's folder where it always was.
+    specs = expand({"steps_scale": args.steps_scale, "figures": not args.no_figures},
+                   {"use_case": list(args.uc), "preset": list(args.preset), "seed": list(args.seeds)},
+                   name=RUN_FOLDER, source="reproduce_all.py")
+    outcome = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
+                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    if outcome.failed:
+        print(f"error: {outcome.failed} run(s) failed (see above); no report written; rerun the "
+              "same command to retry them (finished runs are kept)", file=sys.stderr)
+        return 1
     sections: list[str] = []
     speedups = []
     summaries: dict[str, dict[int, list[pd.DataFrame]]] = {p: {} for p in args.preset}
     for use_case in args.uc:
         for preset in args.preset:
-            folders = []
-            for seed in args.seeds:
-                folder = args.out / f"uc{use_case}-{preset}" / f"seed{seed}"
-                print(f"UC{use_case} {preset} seed {seed} -> {folder}", file=sys.stderr)
-                run_experiment(ExperimentConfig(
-                    use_case=use_case, preset=preset, seed=seed, out_dir=folder,
-                    steps_scale=args.steps_scale, figures=not args.no_figures,
-                    progress=sys.stderr.isatty(), command=command, overwrite=args.overwrite,
-                ))
-                folders.append(folder)
+            folders = [args.out / RUN_FOLDER.format(use_case=use_case, preset=preset, seed=seed)
+                       for seed in args.seeds]
             sections += _section(use_case, preset, folders, args.out)
             summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
             table = results.aggregate_speedups(folders)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 SCRIPT = REPOSITORY / "experiments" / "reproduce_all.py"
@@ -17,11 +21,28 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
                           cwd=REPOSITORY, timeout=900)
 
 
-def test_two_seeds_one_use_case_make_a_report(tmp_path: Path) -> None:
-    out = tmp_path / "rep"
-    done = _run("--uc", "1", "--seeds", "0,1", "--steps-scale", "0.013", "--no-figures",
-                "--out", str(out))
+TINY_ARGS = ("--uc", "1", "--seeds", "0,1", "--steps-scale", "0.013", "--no-figures")
+
+
+@pytest.fixture(scope="module")
+def uncut(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two seeds of use case 1, run without interruption."""
+    out = tmp_path_factory.mktemp("reproduce") / "rep"
+    done = _run(*TINY_ARGS, "--out", str(out))
     assert done.returncode == 0, done.stderr[-2000:]
+    return out
+
+
+def _files(out: Path) -> dict[str, bytes]:
+    """Every run folder's files and the reports, with the --out path taken out of the recorded
+    command lines (the only place it appears)."""
+    names = [p for p in sorted(out.rglob("*")) if p.is_file()
+             and (p.parent != out or p.name in ("REPORT.md", "fidelity.csv", "speedups.csv"))]
+    return {str(p.relative_to(out)): p.read_bytes().replace(str(out).encode(), b"OUT") for p in names}
+
+
+def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
+    out = uncut
     for seed in (0, 1):
         assert (out / "uc1-paper" / f"seed{seed}" / "summary.csv").is_file()
     report = (out / "REPORT.md").read_text()
@@ -51,3 +72,25 @@ def test_unknown_use_case_and_preset_and_repeated_seeds_are_one_line_errors(tmp_
         assert done.returncode == 2
         assert done.stderr.startswith("error:") and done.stderr.count("\n") == 1
         assert "Traceback" not in done.stderr
+
+
+def test_a_killed_reproduction_resumes_to_the_same_files_without_recomputing(uncut: Path, tmp_path: Path) -> None:
+    out = tmp_path / "rep"
+    args = [sys.executable, str(SCRIPT), *TINY_ARGS, "--workers", "1", "--out", str(out)]
+    process = subprocess.Popen(args, cwd=REPOSITORY, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    first = out / "uc1-paper" / "seed0" / "run.json"
+    deadline = time.monotonic() + 300
+    while not first.is_file() and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.kill(process.pid, signal.SIGKILL)  # half way: seed 0 done, seed 1 under way or queued
+    process.wait()
+    assert first.is_file() and not (out / "REPORT.md").exists()
+    stamp = first.stat()
+    done = _run(*TINY_ARGS, "--out", str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "1 computed now, 1 done earlier (not recomputed), 0 failed" in done.stderr
+    assert (first.stat().st_ino, first.stat().st_mtime_ns) == (stamp.st_ino, stamp.st_mtime_ns)
+    resumed, reference = _files(out), _files(uncut)
+    assert resumed.keys() == reference.keys()
+    for name in reference:
+        assert resumed[name] == reference[name], f"{name} differs from the uninterrupted run"

@@ -100,6 +100,9 @@ class ExperimentConfig:
         world: the world settings; None: the preset's world (:data:`PRESET_WORLDS`).
         overwrite: replace an earlier results folder at ``out_dir`` (``--overwrite``).
         force: run a budget beyond the disk and memory limits (``--force``).
+        run_id: the campaign's identifier of this configuration (``runs.campaign``), recorded
+            in ``run.json`` as ``campaign_run_id`` so that a rerun of the campaign knows the
+            folder holds this very run; empty (not recorded) outside campaigns.
     """
 
     use_case: int = 1
@@ -122,6 +125,7 @@ class ExperimentConfig:
     world: WorldSettings | None = None
     overwrite: bool = False
     force: bool = False
+    run_id: str = ""
 
 
 @dataclass
@@ -366,5 +370,6 @@ def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
             "training_rounds": learner.n_training_rounds,
             "final_epsilon": learner.epsilon,
             "policy_source": str(config.policy) if config.policy else POLICY_FILE,
+            **({"campaign_run_id": config.run_id} if config.run_id else {}),
         },
     )

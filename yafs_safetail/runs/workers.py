@@ -83,7 +83,7 @@ class MethodsJob:
         return [*self.names, *(m.name for m in self.user_methods)]
 
 
-def _end_with_parent() -> None:
+def end_with_parent() -> None:
     """Ask Linux to send this worker SIGTERM when its parent dies (even by SIGKILL), so a
     killed run leaves no orphan process; elsewhere the parent's own cleanup has to do."""
     if sys.platform.startswith("linux"):
@@ -99,7 +99,7 @@ def _worker_main(job: MethodsJob, sender: Connection) -> None:
     # parent's handlers it inherited through fork.
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    _end_with_parent()
+    end_with_parent()
     outcome: tuple[bool, object]
     try:
         outcome = (True, job.run())

@@ -1,0 +1,138 @@
+"""Campaigns: grid expansion and run ids; failures, resume without recomputation and the same
+bytes on every engine (tiny UC1 runs; Ray only when installed)."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from yafs_safetail.runs import campaign
+from yafs_safetail.runs.campaign import EARLIER, FAILED, run_campaign
+from yafs_safetail.runs.grid import GridError, RunSpec, expand, load_grid, make_config
+
+TINY = {"steps_scale": 0.013, "figures": False}
+REPOSITORY = Path(__file__).resolve().parents[1]
+TOPOLOGY = REPOSITORY / "topologies" / "paper_5servers.json"
+
+
+def folder_bytes(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_grid_expands_first_axis_outermost_with_readable_names_and_ids() -> None:
+    specs = expand(TINY, {"use_case": [1, 2], "seed": [0, 1]})
+    assert [s.name.rsplit("-", 1)[0] for s in specs] == ["uc1-seed0", "uc1-seed1", "uc2-seed0", "uc2-seed1"]
+    assert all(s.name.endswith(s.run_id) and len(s.run_id) == 12 for s in specs)
+    assert len({s.run_id for s in specs}) == 4
+
+
+def test_run_id_follows_what_the_results_depend_on(tmp_path: Path) -> None:
+    def one(**settings: object) -> str:
+        return expand({**TINY, **settings}, {"seed": [0]})[0].run_id
+
+    base = one()
+    assert one(topology=str(TOPOLOGY)) == base  # the default, spelt out
+    assert one(steps_scale=0.02) != base and one(redundancy_levels=[1, 2]) != base
+    edited = tmp_path / "topology.json"
+    shutil.copy(TOPOLOGY, edited)
+    same_place = one(topology=str(edited))
+    edited.write_text(edited.read_text().replace("\n", "\n\n"))  # same place, other bytes
+    assert one(topology=str(edited)) != same_place
+
+
+def test_bad_grids_are_one_line_errors(tmp_path: Path) -> None:
+    with pytest.raises(GridError, match="'workers' is not a run setting"):
+        expand({"workers": 2}, {"seed": [0]})
+    with pytest.raises(GridError, match="two different runs the folder 'same'"):
+        expand(TINY, {"seed": [0, 1]}, name="same")
+    with pytest.raises(GridError, match="expected a non-empty list"):
+        expand(TINY, {"seed": []})
+    grid = tmp_path / "grid.toml"
+    grid.write_text("[base]\nsteps_scale = 0.013\n[axes]\nseed = [0, 1]\nuse_case = [1]\n")
+    assert [s.name.split("-")[0] for s in load_grid(grid)] == ["seed0", "seed1"]
+    grid.write_text("[axes]\nseed = [0\n")
+    with pytest.raises(GridError, match=r"grid.toml: not valid TOML") as error:
+        load_grid(grid)
+    assert "\n" not in str(error.value)
+    grid.write_text("[axis]\nseed = [0]\n")
+    with pytest.raises(GridError, match="unknown entry 'axis'"):
+        load_grid(grid)
+
+
+def test_engine_options_are_not_recorded_in_the_command() -> None:
+    argv = ["--uc", "1", "--workers", "2", "--engine=ray", "--ray-address", "h:1", "--out", "x"]
+    assert campaign.engine_free_command("p.py", argv) == "python p.py --uc 1 --out x"
+
+
+def test_each_run_gets_one_process_and_its_run_id(tmp_path: Path) -> None:
+    spec = expand(TINY, {"seed": [3]})[0]
+    config = make_config(spec, tmp_path / "r")
+    assert (config.workers, config.progress, config.run_id, config.seed) == (1, False, spec.run_id, 3)
+
+
+@pytest.fixture(scope="module")
+def uncut(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[RunSpec], campaign.CampaignResult, str]:
+    """Two tiny runs and one that fails at its checks, two at a time, without interruption."""
+    out = tmp_path_factory.mktemp("campaign") / "uncut"
+    specs = expand(TINY, {"seed": [0, 1]})
+    broken = expand({**TINY, "topology": "/nonexistent/topology.json"}, {"seed": [0]})
+    stream = io.StringIO()
+    result = run_campaign([*specs, *broken], out, workers=2, stream=stream)
+    return out, specs, result, stream.getvalue()
+
+
+def test_a_failed_run_is_reported_and_the_others_finish(uncut) -> None:
+    out, specs, result, log = uncut
+    assert result.failed == 1
+    assert [r.status for r in result.runs] == ["done", "done", FAILED]
+    assert "topology file not found" in result.runs[2].error
+    for spec in specs:
+        assert campaign.recorded_run_id(out / spec.name) == spec.run_id
+    state = json.loads((out / campaign.STATE_FILE).read_text())
+    assert [r["status"] for r in state["runs"]] == ["done", "done", FAILED]
+    assert "topology file not found" in state["runs"][2]["error"]
+    # Progress lines and the summary table, on the stream and in the log.
+    assert "2/3 done (0 earlier), 0 running, 1 failed, 0 to do" in log
+    assert "3 runs: 2 computed now, 0 done earlier (not recomputed), 1 failed" in log
+    assert "1 failed" in (out / campaign.LOG_FILE).read_text()
+
+
+def test_a_resumed_campaign_recomputes_nothing_and_gives_the_same_bytes(uncut, tmp_path: Path) -> None:
+    reference, specs, _, _ = uncut
+    out = tmp_path / "resumed"
+    # An interrupted campaign: the first run finished, the second never started.
+    shutil.copytree(reference / specs[0].name, out / specs[0].name)
+    stamp = (out / specs[0].name / "run.json").stat()
+    result = run_campaign(specs, out, stream=io.StringIO())
+    assert [r.status for r in result.runs] == [EARLIER, "done"]
+    after = (out / specs[0].name / "run.json").stat()
+    assert (after.st_ino, after.st_mtime_ns) == (stamp.st_ino, stamp.st_mtime_ns)
+    for spec in specs:
+        assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name
+    # A third time: nothing left to compute.
+    again = run_campaign(specs, out, stream=io.StringIO())
+    assert [r.status for r in again.runs] == [EARLIER, EARLIER]
+
+
+def test_a_folder_holding_another_configuration_is_not_replaced_without_overwrite(uncut, tmp_path: Path) -> None:
+    reference, specs, _, _ = uncut
+    out = tmp_path / "other"
+    shutil.copytree(reference / specs[0].name, out / specs[1].name)  # seed 0's run in seed 1's place
+    result = run_campaign(specs[1:], out, stream=io.StringIO())
+    assert result.failed == 1 and "holds a run of another configuration" in result.runs[0].error
+    assert campaign.recorded_run_id(out / specs[1].name) == specs[0].run_id  # untouched
+
+
+def test_ray_engine_writes_the_same_bytes_as_the_local_engine(uncut, tmp_path: Path) -> None:
+    pytest.importorskip("ray", reason="Ray is not installed (pip install -e .[ray]); the local "
+                                      "engine is tested without it")
+    reference, specs, _, _ = uncut
+    out = tmp_path / "ray"
+    result = run_campaign(specs, out, engine="ray", workers=2, stream=io.StringIO())
+    assert result.failed == 0, [r.error for r in result.runs]
+    for spec in specs:
+        assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name

@@ -1,0 +1,238 @@
+"""Where a campaign's runs execute: local worker processes, or Ray (one machine or a cluster).
+
+Every engine runs :func:`execute` on a :class:`RunTask` and hands back a :class:`RunResult`;
+the campaign never has more runs under way than the engine's ``slots``. A run's folder ends up
+in the campaign folder byte for byte the same whichever engine ran it: the local engine's
+workers write it there themselves (through ``run_experiment``'s staging and rename), Ray's
+tasks write it on their own node and send it back as a tar archive that the driver unpacks
+through the same staging and rename, so the campaign folder need not be shared between nodes.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as futures
+import io
+import multiprocessing
+import os
+import shutil
+import signal
+import tarfile
+import tempfile
+import time
+from collections.abc import Collection, Iterable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from yafs_safetail.runs.grid import RunSpec, make_config
+from yafs_safetail.runs.output import StagedOutput
+
+ENGINES = ("local", "ray")
+
+#: Each run of a campaign computes on one core: the campaign's parallelism is its runs, and a
+#: run whose TensorFlow and BLAS spread over every core would fight the other workers for
+#: them (measured: two such workers were slower than one, docs/campaigns.md). Set in every
+#: worker before TensorFlow loads; an explicit value in the environment wins.
+ONE_CORE_ENV = {"TF_NUM_INTRAOP_THREADS": "1", "TF_NUM_INTEROP_THREADS": "1", "OMP_NUM_THREADS": "1",
+                "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "TF_CPP_MIN_LOG_LEVEL": "2"}
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One run to execute: the spec, its folder, and how to record it."""
+
+    spec: RunSpec
+    out_dir: str
+    command: str = ""
+    overwrite: bool = False
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What became of a run: ``error`` is empty on success, else one line saying why."""
+
+    name: str
+    run_id: str
+    error: str
+    wall_s: float
+    archive: bytes | None = None  # the run's folder as a tar archive (Ray only)
+
+
+def one_line(error: BaseException) -> str:
+    """An error as one line: bad input as its own message, anything else with its type."""
+    message = " ".join(str(error).split())
+    if isinstance(error, ValueError | OSError) and message:
+        return message
+    return f"{type(error).__name__}: {message}" if message else type(error).__name__
+
+
+def execute(task: RunTask) -> RunResult:
+    """Run one experiment; a failure is returned, never raised, so the others go on."""
+    started = time.perf_counter()
+    try:
+        from yafs_safetail.runs.experiment import run_experiment
+
+        run_experiment(make_config(task.spec, Path(task.out_dir), task.command, task.overwrite))
+        error = ""
+    except Exception as exc:  # any run's failure, bug or bad input, is that run's alone
+        error = one_line(exc)
+    return RunResult(task.spec.name, task.spec.run_id, error, time.perf_counter() - started)
+
+
+def _raise_terminated(signum: int, frame: Any) -> None:
+    from yafs_safetail.cli import Terminated
+
+    raise Terminated()
+
+
+def _init_worker() -> None:
+    from yafs_safetail.runs.workers import end_with_parent
+
+    # Ctrl-C reaches the whole process group; it is the campaign's to handle (it stops the
+    # workers with SIGTERM). SIGTERM unwinds the run, which removes its staging folder.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _raise_terminated)
+    for name, value in ONE_CORE_ENV.items():
+        os.environ.setdefault(name, value)
+    end_with_parent()
+
+
+class LocalEngine:
+    """``workers`` processes on this machine (concurrent.futures)."""
+
+    def __init__(self, workers: int) -> None:
+        self.slots = workers
+        # "spawn", not fork: the campaign's process may already hold TensorFlow (a grid that
+        # loads a user's policy, a test suite), whose threads and locks do not survive fork.
+        # A spawned worker is a fresh interpreter; it imports TensorFlow once and then runs
+        # run after run, so the import is paid once per worker, not once per run.
+        self._pool = futures.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                                                 mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, task: RunTask) -> futures.Future[RunResult]:
+        return self._pool.submit(execute, task)
+
+    def wait(self, pending: Collection[Any], timeout_s: float) -> set[Any]:
+        done, _ = futures.wait(pending, timeout=timeout_s, return_when=futures.FIRST_COMPLETED)
+        return set(done)
+
+    def result(self, handle: futures.Future[RunResult], task: RunTask) -> RunResult:
+        try:
+            return handle.result()
+        except futures.process.BrokenProcessPool as error:
+            # A worker died outright (killed, out of memory): the pool is unusable, so this
+            # run is reported and a fresh pool takes the next ones.
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = futures.ProcessPoolExecutor(
+                max_workers=self.slots, initializer=_init_worker,
+                mp_context=multiprocessing.get_context("spawn"))
+            return RunResult(task.spec.name, task.spec.run_id,
+                             f"its worker process died ({one_line(error)})", 0.0)
+
+    def close(self, interrupted: bool = False) -> None:
+        if interrupted:
+            # The executor has no public way to stop running calls; its processes get
+            # SIGTERM, which unwinds their runs (staging folders removed).
+            for process in list(getattr(self._pool, "_processes", {}).values()):
+                process.terminate()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _execute_and_pack(task: RunTask) -> RunResult:
+    """On a Ray node: run into a private temporary folder and return it as a tar archive."""
+    _init_worker()
+    scratch = Path(tempfile.mkdtemp(prefix="yafs-safetail-run-"))
+    try:
+        folder = scratch / Path(task.spec.name).name
+        result = execute(replace(task, out_dir=str(folder), overwrite=False))
+        if result.error:
+            return result
+        buffer = io.BytesIO()
+        with tarfile.open(fileobj=buffer, mode="w") as archive:
+            for item in sorted(folder.rglob("*")):
+                archive.add(item, arcname=str(item.relative_to(folder)), recursive=False)
+        return replace(result, archive=buffer.getvalue())
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def unpack(result: RunResult, task: RunTask) -> RunResult:
+    """Publish a run sent back as an archive into its folder (staged, then renamed)."""
+    if result.archive is None:
+        return result
+    try:
+        output = StagedOutput(Path(task.out_dir), task.overwrite)
+        with output as staging, tarfile.open(fileobj=io.BytesIO(result.archive)) as archive:
+            archive.extractall(staging, filter="data")
+            output.publish()
+    except (OSError, ValueError, tarfile.TarError) as error:
+        return replace(result, error=f"could not write the folder sent back: {one_line(error)}", archive=None)
+    return replace(result, archive=None)
+
+
+class RayEngine:
+    """Ray tasks: a local Ray runtime with ``workers`` CPUs, or the cluster at ``address``."""
+
+    def __init__(self, workers: int | None, address: str | None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise ValueError("--engine ray: Ray is not installed; pip install -e .[ray] "
+                             "(or use the local engine)") from None
+        self._ray = ray
+        self._owns_runtime = not ray.is_initialized()
+        if self._owns_runtime:
+            env = {"env_vars": {name: os.environ.get(name, value) for name, value in ONE_CORE_ENV.items()}}
+            try:
+                if address:
+                    ray.init(address=address, runtime_env=env, log_to_driver=False)
+                else:
+                    # Ray starts its workers at niceness 15 by default; on a machine shared
+                    # with anything else that starves the runs (measured: Ray two to three
+                    # times slower than the local engine), so this runtime's workers run at 0.
+                    ray.init(num_cpus=workers or 1, runtime_env=env, log_to_driver=False,
+                             include_dashboard=False, _system_config={"worker_niceness": 0})
+            except (ConnectionError, RuntimeError) as error:
+                raise ValueError(f"--ray-address {address}: cannot connect: {one_line(error)}") from None
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        self.slots = min(workers, cpus) if workers else cpus
+        self._remote = ray.remote(num_cpus=1, max_retries=0)(_execute_and_pack)
+
+    def submit(self, task: RunTask) -> Any:
+        return self._remote.remote(task)
+
+    def wait(self, pending: Collection[Any], timeout_s: float) -> set[Any]:
+        done, _ = self._ray.wait(list(pending), num_returns=1, timeout=timeout_s)
+        return set(done)
+
+    def result(self, handle: Any, task: RunTask) -> RunResult:
+        try:
+            result: RunResult = self._ray.get(handle)
+        except Exception as error:  # a task or node lost: that run's failure alone
+            return RunResult(task.spec.name, task.spec.run_id, f"Ray task failed: {one_line(error)}", 0.0)
+        return unpack(result, task)
+
+    def close(self, interrupted: bool = False) -> None:
+        if self._owns_runtime:
+            self._ray.shutdown()
+
+
+def make_engine(engine: str, workers: int | None, ray_address: str | None) -> LocalEngine | RayEngine:
+    """The engine named on the command line (``--engine``, ``--workers``, ``--ray-address``)."""
+    if workers is not None and (isinstance(workers, bool) or workers < 1):
+        raise ValueError(f"--workers: expected a positive integer, got {workers!r}")
+    if engine == "ray" or ray_address:
+        return RayEngine(workers, ray_address)
+    if engine != "local":
+        raise ValueError(f"--engine: unknown engine {engine!r}; valid: {', '.join(ENGINES)}")
+    return LocalEngine(workers or 1)
+
+
+def cancel_all(engine: LocalEngine | RayEngine, handles: Iterable[Any]) -> None:
+    """Best effort: stop runs that are under way (Ctrl-C, SIGTERM)."""
+    if isinstance(engine, RayEngine):
+        for handle in handles:
+            try:
+                engine._ray.cancel(handle, force=True)
+            except Exception:  # already finished or gone: nothing to stop
+                pass

@@ -1,0 +1,279 @@
+"""A campaign's grid: which runs it holds, what each one is called and what identifies it.
+
+A grid is fixed settings (``base``) and axes (``axes``: a list of values per
+:class:`~yafs_safetail.runs.experiment.ExperimentConfig` field); the campaign is every
+combination, the first axis outermost. Written by hand as TOML, YAML or JSON::
+
+    name = "uc{use_case}-{preset}-seed{seed}-{id}"    # optional; the default names each axis
+    [base]
+    steps_scale = 0.1
+    figures = false
+    [axes]
+    use_case = [1, 2]
+    preset = ["paper", "tuned"]
+    seed = [0, 1, 2, 3, 4]
+    topology = ["topologies/paper_5servers.json", "topologies/paper_7servers.json"]
+
+A run's id is a short hash of everything its results depend on: every result-bearing field
+(paths replaced by where they are and a digest of what they hold, so an edited topology or
+trace file is a new run) and the code version (package version and git commit). Fields that
+only say where and how a run goes (``out_dir``, ``workers``, ``progress``...) are not part of it.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import itertools
+import json
+import re
+import subprocess
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import yafs_safetail
+from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.scenario import REPOSITORY
+from yafs_safetail.methods.registry import UserMethod
+from yafs_safetail.runs.experiment import ExperimentConfig
+
+#: Hex digits of a run id: 48 bits, so two configurations of one campaign never share one.
+ID_LENGTH = 12
+
+#: Fields that say where a run goes and how it shows itself, never what it computes: the
+#: campaign sets them, and they are left out of the run id.
+RUNTIME_FIELDS = ("out_dir", "progress", "command", "workers", "overwrite", "force", "run_id")
+PATH_FIELDS = ("topology", "placement", "traces_dir", "policy")
+SETTABLE_FIELDS = tuple(f.name for f in fields(ExperimentConfig) if f.name not in RUNTIME_FIELDS)
+
+
+class GridError(ValueError):
+    """A grid that cannot be expanded (one line naming the file, the entry and the problem)."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a campaign.
+
+    Attributes:
+        name: its folder under the campaign's folder (may hold ``/``).
+        run_id: the hash of its identity (:func:`identity`).
+        settings: the ExperimentConfig fields it sets, JSON values (paths absolute).
+    """
+
+    name: str
+    run_id: str
+    settings: Mapping[str, Any]
+
+
+@functools.cache
+def code_version() -> str:
+    """The package version and, in a git checkout, the commit: ``0.1.0+git.<sha>``."""
+    try:
+        commit = subprocess.run(["git", "-C", str(REPOSITORY), "rev-parse", "HEAD"],
+                                capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return yafs_safetail.__version__
+    return f"{yafs_safetail.__version__}+git.{commit}"
+
+
+def _digest(path: Path) -> str:
+    """SHA-256 of a file, or of every file under a folder (names and contents)."""
+    sha = hashlib.sha256()
+    if path.is_dir():
+        for item in sorted(p for p in path.rglob("*") if p.is_file()):
+            relative = item.relative_to(path)
+            if any(part.startswith(".") or part == "__pycache__" for part in relative.parts):
+                continue
+            sha.update(str(relative).encode() + b"\0" + item.read_bytes() + b"\0")
+    elif path.is_file():
+        sha.update(path.read_bytes())
+    else:
+        return "missing"  # the run itself reports it; the id only has to be stable
+    return sha.hexdigest()
+
+
+def _where(path: Path) -> str:
+    # Inside the project the place is recorded relative to it, so that the same campaign in
+    # another checkout has the same ids.
+    resolved = path.resolve()
+    return str(resolved.relative_to(REPOSITORY)) if resolved.is_relative_to(REPOSITORY) else str(resolved)
+
+
+def _method_identity(spec: str) -> dict[str, str]:
+    target = spec.partition("=")[2] if "=" in spec.split(":")[0] else spec
+    source = Path(target.rpartition(":")[0])
+    return {"spec": spec, "sha256": _digest(source) if source.suffix == ".py" else "module"}
+
+
+def identity(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """Everything a run's results depend on, as canonical JSON values."""
+    defaults = ExperimentConfig()
+    full: dict[str, Any] = {}
+    for name in SETTABLE_FIELDS:
+        value = settings.get(name, _json_value(getattr(defaults, name)))
+        if name in PATH_FIELDS and value is not None:
+            value = {"path": _where(Path(value)), "sha256": _digest(Path(value))}
+        elif name == "methods":
+            value = [_method_identity(spec) for spec in value]
+        full[name] = value
+    full["code_version"] = code_version()
+    return full
+
+
+def run_id(settings: Mapping[str, Any]) -> str:
+    """The short hash of :func:`identity` (sorted-key JSON)."""
+    canonical = json.dumps(identity(settings), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
+
+
+def _json_value(value: Any) -> Any:
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, tuple):
+        return [_json_value(v) for v in value]
+    if isinstance(value, WorldSettings):
+        return value.to_dict()
+    if isinstance(value, UserMethod):
+        return value.spec
+    return value
+
+
+def _setting(source: str, name: str, value: Any) -> Any:
+    """A grid value as the JSON value the run is identified by (paths made absolute, so the
+    workers, wherever they start, read the same files)."""
+    if name not in SETTABLE_FIELDS:
+        raise GridError(f"{source}: {name!r} is not a run setting; valid: {', '.join(SETTABLE_FIELDS)}")
+    if name in PATH_FIELDS and value is not None:
+        if not isinstance(value, str):
+            raise GridError(f"{source}: {name} = {value!r}: expected a path")
+        return str(Path(value).resolve())
+    if name in ("redundancy_levels", "methods"):
+        if not isinstance(value, list | tuple):
+            raise GridError(f"{source}: {name} = {value!r}: expected a list")
+        return list(value)
+    return _json_value(value)
+
+
+def _label(name: str, value: Any) -> str:
+    """How one axis value reads in a folder name."""
+    if name in ("use_case", "seed"):
+        return f"{'uc' if name == 'use_case' else 'seed'}{value}"
+    if name == "preset":
+        return str(value)
+    if name in PATH_FIELDS and value is not None:
+        return Path(value).stem
+    text = json.dumps(value) if not isinstance(value, str) else value
+    return f"{name}-{text}"
+
+
+def _clean(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._=+/-]+", "_", text).strip("_") or "run"
+
+
+def expand(base: Mapping[str, Any], axes: Mapping[str, Sequence[Any]], name: str | None = None,
+           source: str = "grid") -> list[RunSpec]:
+    """Every combination of ``axes`` over ``base`` (first axis outermost) as run specs.
+
+    Args:
+        base: settings shared by every run.
+        axes: per setting, the values it takes.
+        name: a folder-name template over the settings and ``{id}`` (``str.format``); None:
+            the axes' values and the id, e.g. ``uc1-paper-seed0-<id>``.
+        source: what to name in errors (the grid file).
+    """
+    fixed = {key: _setting(f"{source} base", key, value) for key, value in base.items()}
+    for key, values in axes.items():
+        if not isinstance(values, list | tuple) or not values:
+            raise GridError(f"{source} axes: {key} = {values!r}: expected a non-empty list of values")
+    keys = list(axes)
+    specs: list[RunSpec] = []
+    seen: dict[str, str] = {}
+    for combination in itertools.product(*(axes[key] for key in keys)):
+        settings = dict(fixed)
+        settings.update({k: _setting(f"{source} axes", k, v) for k, v in zip(keys, combination, strict=True)})
+        identifier = run_id(settings)
+        if name is None:
+            labels = [_label(k, v) for k, v in zip(keys, combination, strict=True)]
+            folder = "-".join([*labels, identifier])
+        else:
+            defaults = {f: _json_value(getattr(ExperimentConfig(), f)) for f in SETTABLE_FIELDS}
+            try:
+                folder = name.format(**{**defaults, **settings, "id": identifier})
+            except (KeyError, IndexError, ValueError) as error:
+                raise GridError(f"{source}: name {name!r}: cannot fill it in ({error})") from None
+        folder = _clean(folder)
+        if folder.startswith("/") or ".." in folder.split("/"):
+            raise GridError(f"{source}: name {name!r} gives {folder!r}, which leaves the campaign folder")
+        if folder in seen and seen[folder] != identifier:
+            raise GridError(f"{source}: name {name!r} gives two different runs the folder {folder!r}; "
+                            "add the setting that tells them apart, or {id}")
+        if folder not in seen:
+            seen[folder] = identifier
+            specs.append(RunSpec(name=folder, run_id=identifier, settings=settings))
+    return specs
+
+
+def load_grid(path: Path) -> list[RunSpec]:
+    """The runs of a grid file (``.toml``, ``.yaml``/``.yml`` or ``.json``)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise GridError(f"{path}: cannot read it: {error.strerror}") from None
+    try:
+        if path.suffix == ".toml":
+            data = tomllib.loads(text)
+        elif path.suffix in (".yaml", ".yml"):
+            try:
+                import yaml  # type: ignore[import-untyped]
+            except ImportError:
+                raise GridError(f"{path}: YAML grids need PyYAML (pip install pyyaml); "
+                                "or write the grid as TOML") from None
+            data = yaml.safe_load(text)
+        elif path.suffix == ".json":
+            data = json.loads(text)
+        else:
+            raise GridError(f"{path}: expected a .toml, .yaml or .json grid")
+    except GridError:
+        raise
+    except Exception as error:  # each parser has its own error class; all mean "not parsable"
+        raise GridError(f"{path}: not valid {path.suffix[1:].upper()}: {' '.join(str(error).split())}") from None
+    if not isinstance(data, dict):
+        raise GridError(f"{path}: expected a table with [base] and [axes]")
+    unknown = sorted(set(data) - {"base", "axes", "name"})
+    if unknown:
+        raise GridError(f"{path}: unknown entry {unknown[0]!r}; a grid has name, base and axes")
+    base, axes, name = data.get("base", {}), data.get("axes", {}), data.get("name")
+    if not isinstance(base, dict) or not isinstance(axes, dict):
+        raise GridError(f"{path}: base and axes must be tables")
+    if name is not None and not isinstance(name, str):
+        raise GridError(f"{path}: name = {name!r}: expected a text template")
+    return expand(base, axes, name, source=str(path))
+
+
+def make_config(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> ExperimentConfig:
+    """The ExperimentConfig of one run (one process for it: the campaign runs runs in parallel).
+
+    Raises:
+        ValueError: a setting of the wrong kind (a user's policy that cannot be loaded...).
+    """
+    values: dict[str, Any] = {}
+    for key, value in spec.settings.items():
+        if key in PATH_FIELDS and value is not None:
+            value = Path(value)
+        elif key == "redundancy_levels":
+            value = tuple(value)
+        elif key == "methods":
+            value = tuple(UserMethod(str(item)) for item in value)
+        elif key == "world" and value is not None:
+            value = world_settings(value) if isinstance(value, str) else WorldSettings(**value)
+        values[key] = value
+    try:
+        return ExperimentConfig(**values, out_dir=out_dir, command=command, overwrite=overwrite,
+                                workers=1, progress=False, run_id=spec.run_id)
+    except TypeError as error:
+        raise GridError(f"run {spec.name}: {error}") from None
