@@ -99,11 +99,16 @@ class JSONPlacement(Placement):
                     self.source, entry, "module_name",
                     f"app {app_name!r} has no module {module!r} with a service",
                 )
-            if node not in sim.topology.G:
-                raise YAFSInputError(
-                    self.source, entry, "id_resource", f"node {node!r} is not in the topology"
-                )
-            sim.deploy_module(app_name, module, services[module], [node])
+            target = self._node_for(entry, node, sim)
+            sim.deploy_module(app_name, module, services[module], [target])
+
+    def _node_for(self, entry: str, node: Any, sim: Sim) -> Any:
+        """The node an entry's replica goes to: its ``id_resource``, which must exist."""
+        if node not in sim.topology.G:
+            raise YAFSInputError(
+                self.source, entry, "id_resource", f"node {node!r} is not in the topology"
+            )
+        return node
 
     def validate_apps(self, apps: dict[Any, Any]) -> None:
         """Raise if an entry names an application that is not in ``apps``."""
@@ -129,17 +134,8 @@ class JSONPlacementOnCloud(JSONPlacement):
         super().__init__(json, name, activation_dist, logger)
         self.idCloud = idCloud
 
-    def initial_allocation(self, sim: Sim, app_name: Any) -> None:
-        for entry, module, app, _node in self._entries:
-            if app != app_name:
-                continue
-            services = sim.apps[app_name].services
-            if module not in services:
-                raise YAFSInputError(
-                    self.source, entry, "module_name",
-                    f"app {app_name!r} has no module {module!r} with a service",
-                )
-            sim.deploy_module(app_name, module, services[module], [self.idCloud])
+    def _node_for(self, entry: str, node: Any, sim: Sim) -> Any:
+        return self.idCloud  # YAFS3 does not check the cloud node either
 
 
 class ClusterPlacement(Placement):
