@@ -229,7 +229,7 @@ def load_grid(path: Path) -> list[RunSpec]:
             data = tomllib.loads(text)
         elif path.suffix in (".yaml", ".yml"):
             try:
-                import yaml  # type: ignore[import-untyped]
+                import yaml
             except ImportError:
                 raise GridError(f"{path}: YAML grids need PyYAML (pip install pyyaml); "
                                 "or write the grid as TOML") from None
