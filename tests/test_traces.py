@@ -25,16 +25,16 @@ from yafs_safetail.edge.traces import (
 CSV_NAMES = ("bandwidth.csv", "propagation.csv", "compute_uc1.csv", "compute_uc2.csv", "compute_uc3.csv", "load.csv")
 
 
-def _load_generator():
-    spec = importlib.util.spec_from_file_location("traces_generate", DEFAULT_TRACE_DIR / "generate.py")
+def _load_script(name: str):
+    spec = importlib.util.spec_from_file_location(f"traces_{name}", DEFAULT_TRACE_DIR / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses resolve their module through sys.modules
     spec.loader.exec_module(module)
     return module
 
 
-generate = _load_generator()
-CHECKS = generate.check_statistics(DEFAULT_TRACE_DIR)
+generate = _load_script("generate")
+CHECKS = _load_script("check_traces").check_statistics(DEFAULT_TRACE_DIR)
 
 
 @pytest.fixture(scope="module")
