@@ -19,55 +19,27 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import ArgumentParser, int_list, positive_float, positive_int, run_cli
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.runs.calibrate import (
     DEFAULT_SEEDS,
     CalibrationConfig,
-    CalibrationRunError,
     calibrate,
 )
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise CalibrationRunError(message)
-
-
-def _seeds(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(part) for part in text.split(",") if part.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
-    if not values or min(values) < 0:
-        raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
-    return values
-
-
-def _positive(kind: type) -> object:
-    def parse(text: str) -> object:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-        if not value > 0 or value != value or value == float("inf"):
-            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-        return value
-    return parse
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _Parser(prog="calibrate.py", description=__doc__,
+    parser = ArgumentParser(prog="calibrate.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--preset", default="paper", choices=PRESET_NAMES,
                         help="learner preset whose SafeTail enters the ratios (default paper)")
-    parser.add_argument("--seeds", type=_seeds, default=DEFAULT_SEEDS,
+    parser.add_argument("--seeds", type=int_list, default=DEFAULT_SEEDS,
                         help="calibration seeds, disjoint from report seeds (default 1000,1001,1002)")
-    parser.add_argument("--steps-scale", type=_positive(float), default=1.0,
+    parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="fraction of the step budget per run (default 1)")
-    parser.add_argument("--max-evaluations", type=_positive(int), default=32,
+    parser.add_argument("--max-evaluations", type=positive_int, default=32,
                         help="candidates evaluated at most (default 32)")
-    parser.add_argument("--workers", type=_positive(int), default=2, help="parallel runs (default 2)")
+    parser.add_argument("--workers", type=positive_int, default=2, help="parallel runs (default 2)")
     parser.add_argument("--out", type=Path, default=Path("results/calibration"),
                         help="output folder (default results/calibration)")
     parser.add_argument("--apply", action="store_true",

@@ -18,9 +18,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import ArgumentParser, run_cli
 from yafs_safetail.runs.campaign import (
-    CampaignError,
     add_engine_options,
     engine_free_command,
     run_campaign,
@@ -28,13 +27,8 @@ from yafs_safetail.runs.campaign import (
 from yafs_safetail.runs.grid import load_grid
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise CampaignError(message)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _Parser(prog="campaign.py", description=__doc__,
+    parser = ArgumentParser(prog="campaign.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--grid", type=Path, required=True, help="the grid file (.toml, .yaml, .json)")
     parser.add_argument("--out", type=Path, required=True, help="the campaign folder")

@@ -34,7 +34,7 @@ from pathlib import Path
 import pandas as pd
 
 from yafs_safetail import results
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import ArgumentParser, distinct_int_list, run_cli
 from yafs_safetail.edge.calibration import CalibrationError, read_calibration
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
@@ -57,25 +57,6 @@ FIGURE_STEMS = (
     ("f", "fig_f_latency_deviation", "latency deviation per average episode"),
     ("g", "fig_g_abs_reward", "|reward| per average episode"),
 )
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise ExperimentError(message)
-
-
-def _int_list(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(part) for part in text.split(",") if part.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
-    if not values or min(values) < 0:
-        raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
-    repeated = sorted({v for v in values if values.count(v) > 1})
-    if repeated:
-        raise argparse.ArgumentTypeError(
-            f"{repeated[0]} is given twice in {text!r}; a repeated seed would count twice")
-    return values
 
 
 def _presets(text: str) -> tuple[str, ...]:
@@ -200,10 +181,10 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _Parser(prog="reproduce_all.py", description=__doc__,
+    parser = ArgumentParser(prog="reproduce_all.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=_int_list, default=USE_CASES, help="use cases (default: all)")
-    parser.add_argument("--seeds", type=_int_list, default=(0, 1, 2, 3, 4),
+    parser.add_argument("--uc", type=distinct_int_list, default=USE_CASES, help="use cases (default: all)")
+    parser.add_argument("--seeds", type=distinct_int_list, default=(0, 1, 2, 3, 4),
                         help="distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)")
     parser.add_argument("--preset", type=_presets, default=("paper",),
                         help="preset(s), comma-separated (default paper)")

@@ -20,7 +20,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import (
+    ArgumentParser,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    run_cli,
+)
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
@@ -28,47 +34,9 @@ from yafs_safetail.runs.experiment import (
     DEFAULT_PLACEMENT,
     DEFAULT_TOPOLOGY,
     ExperimentConfig,
-    ExperimentError,
     run_experiment,
 )
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that reports bad arguments as our one-line error (exit 2, no usage dump)."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise ExperimentError(message)
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not value > 0 or value != value or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def _levels(text: str) -> tuple[int, ...]:
@@ -82,13 +50,13 @@ def _levels(text: str) -> tuple[int, ...]:
 
 
 def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
-    parser = _Parser(prog="run_usecase.py", description=__doc__,
+    parser = ArgumentParser(prog="run_usecase.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--uc", type=int, required=True, choices=USE_CASES,
                         help="use case: 1 object detection, 2 instance segmentation, 3 noise removal")
     parser.add_argument("--preset", default="paper", choices=PRESET_NAMES,
                         help="learner preset (default: paper = Table I verbatim)")
-    parser.add_argument("--seed", type=_seed, default=0, help="the run's seed (default 0)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="the run's seed (default 0)")
     parser.add_argument("--out", type=Path, default=None,
                         help="results folder (default results/uc<N>-<preset>-s<seed>, plus "
                              "-x<scale> with --steps-scale); never replaced unless --overwrite")
@@ -96,7 +64,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                         help="run a budget beyond the limits (10 GB of results or 4 GB of memory)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier results folder at --out (only a results folder)")
-    parser.add_argument("--steps-scale", type=_positive_float, default=1.0,
+    parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="fraction of the preset's training and testing steps (default 1)")
     parser.add_argument("--redundancy", type=_levels, default=(1, 2, 3),
                         help="levels x of Rand-x, MinLoad-x, MinProp-x (default 1,2,3)")
@@ -109,10 +77,10 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                              "named after the class unless NAME= is given)")
     parser.add_argument("--policy", type=Path, default=None,
                         help="evaluate this saved policy (.keras) without training")
-    parser.add_argument("--step-interval-s", type=_positive_float, default=DEFAULT_STEP_INTERVAL_S,
+    parser.add_argument("--step-interval-s", type=positive_float, default=DEFAULT_STEP_INTERVAL_S,
                         help=f"simulated time between two requests, one load-trace row "
                              f"(default {DEFAULT_STEP_INTERVAL_S:g})")
-    parser.add_argument("--workers", type=_positive_int, default=2,
+    parser.add_argument("--workers", type=positive_int, default=2,
                         help="processes: the baselines are tested in workers-1 other processes "
                              "while SafeTail trains (default 2; 1 = one process; same results)")
     yafs_csv = parser.add_mutually_exclusive_group()

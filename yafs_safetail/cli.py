@@ -8,6 +8,7 @@ that line. Set ``YAFS_SAFETAIL_DEBUG=1`` to see the traceback instead (for bug r
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import os
 import signal
@@ -15,6 +16,7 @@ import sys
 import threading
 from collections.abc import Callable, Sequence
 from types import FrameType
+from typing import NoReturn
 
 EXIT_BAD_INPUT = 2
 EXIT_TERMINATED = 128 + signal.SIGTERM
@@ -26,6 +28,70 @@ class Terminated(KeyboardInterrupt):
 
 
 _terminating = threading.Event()
+
+
+class UsageError(ValueError):
+    """A bad command-line argument (argparse's own message, reported as one line)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse that reports bad arguments as :func:`run_cli`'s one-line error (exit 2, no
+    usage dump), for every entry point."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(message)
+
+
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):  # also refuses nan
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _integer(text: str, smallest: int, what: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a {what} integer, got {text!r}") from None
+    if value < smallest:
+        raise argparse.ArgumentTypeError(f"expected a {what} integer, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: an integer >= 1."""
+    return _integer(text, 1, "positive")
+
+
+def non_negative_int(text: str) -> int:
+    """An argparse type: an integer >= 0 (a seed)."""
+    return _integer(text, 0, "non-negative")
+
+
+def int_list(text: str) -> tuple[int, ...]:
+    """An argparse type: comma-separated non-negative integers, at least one."""
+    try:
+        values = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not values or min(values) < 0:
+        raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
+    return values
+
+
+def distinct_int_list(text: str) -> tuple[int, ...]:
+    """:func:`int_list` with no value given twice (a repeated seed would count twice)."""
+    values = int_list(text)
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"{repeated[0]} is given twice in {text!r}; a repeated seed would count twice")
+    return values
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
