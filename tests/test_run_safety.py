@@ -226,3 +226,22 @@ def test_bad_policy_files_and_slow_links_are_one_line_errors(tmp_path):
                "--out", tmp_path / "c", *TINY)
     one_error_line(done, "step_interval_s=60", "--step-interval-s")
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists() and not (tmp_path / "c").exists()
+
+
+def test_only_this_tools_files_are_ever_removed(tmp_path):
+    """A user's file named like our lock, or a folder named like our temporary folders, is
+    left alone: only what carries the tool's marker is removed."""
+    mine = tmp_path / ".run.lock"
+    mine.write_text("my notes\n")
+    done = run("--uc", "1", "--out", tmp_path / "run", *TINY)
+    one_error_line(done, ".run.lock", "not a yafs-safetail lock")
+    assert mine.read_text() == "my notes\n"
+    mine.unlink()
+    lookalike = tmp_path / ".run.partial-mine"
+    lookalike.mkdir()
+    (lookalike / "data.txt").write_text("keep\n")
+    done = run("--uc", "1", "--out", tmp_path / "run", *TINY)
+    assert done.returncode == 0, done.stderr
+    assert (lookalike / "data.txt").read_text() == "keep\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".run.partial-mine", "run"]
+    assert not (tmp_path / "run" / ".yafs-safetail-partial").exists()

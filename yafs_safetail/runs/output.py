@@ -8,7 +8,10 @@ of this tool (it has ``run.json`` and ``requests.csv``), and is replaced only wi
 ``overwrite``. A lock beside the target (``.NAME.lock``, held with ``flock`` for the whole run,
 so a killed run never leaves a stale lock) makes a second run on the same target fail at once.
 Whatever happens, the temporary folder is removed and the lock released; the temporary
-folder of a run killed outright (SIGKILL) is removed by the next run on the same target.
+folder of a run killed outright (SIGKILL) is removed by the next run on the same target. Only
+what carries this tool's marker is ever removed: a lock file starting with ``LOCK_MARKER``, a
+temporary folder holding ``STAGING_MARKER``; an earlier results folder goes only with
+``overwrite``, after the new one is in place.
 """
 
 from __future__ import annotations
@@ -71,14 +74,21 @@ def check_target(folder: Path, overwrite: bool, option: str = "--out") -> Path:
     return target
 
 
+#: The first line of every lock file and the name of the marker inside every temporary folder
+#: this tool makes: only files and folders carrying them are ever removed.
+LOCK_MARKER = "yafs-safetail run lock"
+STAGING_MARKER = ".yafs-safetail-partial"
+
+
 @contextlib.contextmanager
 def _lock(target: Path, option: str) -> Iterator[None]:
     path = target.parent / f".{target.name}.lock"
     while True:
         try:
-            handle = open(path, "a+")  # noqa: SIM115 (held for the whole run)
+            descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as error:
             raise OSError(f"{option} {target}: cannot write in {target.parent}: {error.strerror}") from None
+        handle = os.fdopen(descriptor, "r+")  # held for the whole run
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -93,13 +103,20 @@ def _lock(target: Path, option: str) -> Iterator[None]:
         if same:
             break
         handle.close()
+    content = handle.read()
+    if content and not content.startswith(LOCK_MARKER):  # a file of someone else's: leave it
+        handle.close()
+        raise OutputError(f"{option} {target}: {path} exists and is not a yafs-safetail lock; "
+                          "move it away or choose another folder")
     try:
-        handle.write(f"{os.getpid()}\n")
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{LOCK_MARKER}, pid {os.getpid()}\n")
         handle.flush()
         yield
     finally:
         with contextlib.suppress(OSError):
-            os.unlink(path)
+            os.unlink(path)  # ours: created by this run or left by a killed one
         handle.close()
 
 
@@ -133,9 +150,11 @@ class StagedOutput:
             # Temporary folders of earlier runs on this target that were killed outright
             # (SIGKILL, power loss): this tool made them, and no run can be using them now.
             for stale in parent.glob(f".{self.target.name}.partial-*"):
-                shutil.rmtree(stale, ignore_errors=True)
+                if (stale / STAGING_MARKER).is_file():
+                    shutil.rmtree(stale, ignore_errors=True)
             try:
                 self.staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.partial-", dir=parent))
+                (self.staging / STAGING_MARKER).touch()
             except OSError as error:
                 raise OSError(f"{self.option} {self.out_dir}: cannot write in {parent}: {error.strerror}") from None
             self._stack = self._stack.pop_all()
@@ -150,6 +169,7 @@ class StagedOutput:
         if target.exists():
             previous = Path(tempfile.mkdtemp(prefix=f".{target.name}.previous-", dir=target.parent))
             os.replace(target, previous / target.name)
+        (self.staging / STAGING_MARKER).unlink()
         os.replace(self.staging, target)
         self.staging = None
         if previous is not None:

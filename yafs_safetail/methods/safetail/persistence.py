@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -51,7 +52,18 @@ def _make_reproducible(path: Path) -> None:
     The weights are already deterministic; Keras's ``metadata.json`` date, the object
     addresses in ``config.json`` and the zip entries' modification times are not.
     """
-    staging = path.with_name(f".{path.name}.tmp")
+    handle, staging_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(handle)
+    staging = Path(staging_name)
+    try:
+        _rewrite(path, staging)
+    except BaseException:
+        staging.unlink(missing_ok=True)  # the temporary file made just above
+        raise
+    os.replace(staging, path)
+
+
+def _rewrite(path: Path, staging: Path) -> None:
     with zipfile.ZipFile(path) as source, zipfile.ZipFile(staging, "w", zipfile.ZIP_DEFLATED) as target:
         for entry in source.infolist():
             data = source.read(entry.filename)
@@ -65,7 +77,6 @@ def _make_reproducible(path: Path) -> None:
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = entry.external_attr
             target.writestr(info, data)
-    os.replace(staging, path)
 
 
 def read_policy_sidecar(path: str | Path) -> dict[str, Any]:
