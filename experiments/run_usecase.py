@@ -28,10 +28,10 @@ from yafs_safetail.cli import (
     run_cli,
 )
 from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.edge.scenario import default_placement
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.runs.experiment import (
-    DEFAULT_PLACEMENT,
     DEFAULT_TOPOLOGY,
     ExperimentConfig,
     run_experiment,
@@ -94,8 +94,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
 
     placement = args.placement
     if placement is None:
-        placement = (DEFAULT_PLACEMENT if args.topology == DEFAULT_TOPOLOGY
-                     else DEFAULT_PLACEMENT.parent / args.topology.name)
+        placement = default_placement(args.topology)
     scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
     out = args.out or Path("results") / f"uc{args.uc}-{args.preset}-s{args.seed}{scale}"
     command = shlex.join(["python", "experiments/run_usecase.py", *(sys.argv[1:] if argv is None else argv)])

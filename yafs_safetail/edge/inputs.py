@@ -17,6 +17,7 @@ import numpy as np
 from yafs_safetail.edge import published
 from yafs_safetail.edge.compute import ComputeModel
 from yafs_safetail.edge.latency import copy_latency_s
+from yafs_safetail.edge.scenario import EdgeScenario, load_scenario
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR, TraceSet, load_traces
 from yafs_safetail.edge.usecases import UseCase
 
@@ -184,3 +185,10 @@ def load_inputs(
     """
     model = compute_model or ComputeModel.load(use_case.number, Path(trace_dir) / "models")
     return trace_inputs(load_traces(trace_dir), use_case, model.predict_s, model.sigma_by_k_s)
+
+
+def load_scenario_for(inputs: TraceInputs, topology: Path, placement: Path) -> EdgeScenario:
+    """The topology and placement, checked against these traces (every link's distance
+    condition has an RTT pool, every server's load device exists)."""
+    return load_scenario(topology, placement, known_conditions=inputs.rtt_pools_s.keys(),
+                         n_load_devices=inputs.n_load_devices)

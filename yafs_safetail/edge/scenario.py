@@ -32,6 +32,11 @@ DEFAULT_TOPOLOGY = REPOSITORY / "topologies" / "paper_5servers.json"
 DEFAULT_PLACEMENT = REPOSITORY / "placements" / "paper_5servers.json"
 
 
+def default_placement(topology: Path) -> Path:
+    """The placement that goes with a topology file: ``placements/<its file name>``."""
+    return DEFAULT_PLACEMENT if topology == DEFAULT_TOPOLOGY else DEFAULT_PLACEMENT.parent / topology.name
+
+
 @dataclass(frozen=True)
 class EdgePlacementSpec:
     """The validated content of a placement file.

@@ -34,12 +34,12 @@ import pandas as pd
 import yafs_safetail
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.inputs import load_scenario_for
 from yafs_safetail.edge.scenario import (
     DEFAULT_PLACEMENT,
     DEFAULT_TOPOLOGY,
     REPOSITORY,
     EdgeScenario,
-    load_scenario,
 )
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.usecases import UseCase, get_use_case
@@ -55,7 +55,7 @@ from yafs_safetail.methods.safetail.presets import (
 from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.budget import check_budget
-from yafs_safetail.runs.output import StagedOutput, check_target
+from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.runner import simulate
@@ -175,9 +175,7 @@ def _check(config: ExperimentConfig) -> _Inputs:
     if len(set(names)) != len(names):
         raise ExperimentError(f"--method: two methods are named {sorted(n for n in names if names.count(n) > 1)[0]!r}")
     inputs = load_inputs(use_case, config.traces_dir)
-    scenario = load_scenario(config.topology, config.placement,
-                             known_conditions=inputs.rtt_pools_s.keys(),
-                             n_load_devices=inputs.n_load_devices)
+    scenario = load_scenario_for(inputs, Path(config.topology), Path(config.placement))
     for x in config.redundancy_levels:
         if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= scenario.n_servers:
             raise ExperimentError(
@@ -234,9 +232,8 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     timings = {"setup": 0.0, "tf_import": 0.0, "simulation": 0.0, "decisions": 0.0, "training": 0.0,
                "baselines_in_workers": 0.0, "waiting_for_workers": 0.0, "writing": 0.0, "plotting": 0.0}
     started = time.perf_counter()
-    check_target(Path(config.out_dir), config.overwrite)  # before the slow checks
+    output = StagedOutput(Path(config.out_dir), config.overwrite)  # checks the target first
     inputs = _check(config)
-    output = StagedOutput(Path(config.out_dir), config.overwrite)
     with output as staging:
         summary = _run_into(staging, config, inputs, timings, started)
         output.publish()

@@ -50,8 +50,9 @@ import numpy as np
 from gymnasium import spaces
 
 from yafs_safetail.edge.calibration import world_settings
+from yafs_safetail.edge.inputs import load_scenario_for
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, load_scenario
+from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
@@ -149,11 +150,8 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         self._inputs = load_inputs(self.use_case, Path(traces_dir))
         topology = Path(topology)
         if placement is None:
-            placement = (DEFAULT_PLACEMENT if topology == DEFAULT_TOPOLOGY
-                         else DEFAULT_PLACEMENT.parent / topology.name)
-        self.scenario = load_scenario(topology, Path(placement),
-                                      known_conditions=self._inputs.rtt_pools_s.keys(),
-                                      n_load_devices=self._inputs.n_load_devices)
+            placement = default_placement(topology)
+        self.scenario = load_scenario_for(self._inputs, topology, Path(placement))
         self._settings = world_settings(PRESET_WORLDS[preset])
         self.n_servers = n = self.scenario.n_servers
         self.action_space = spaces.Discrete(n_actions(n))
