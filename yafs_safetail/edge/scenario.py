@@ -17,6 +17,7 @@ import numpy as np
 from yafs_safetail.edge.topology_io import (
     CONDITION_KEY,
     LOAD_DEVICE_KEY,
+    REFERENCE_SERVER_IPT,
     EdgeTopology,
     JsonSource,
     ScenarioError,
@@ -127,6 +128,16 @@ class EdgeScenario:
     def server_link_pr_s(self) -> tuple[float, ...]:
         """PR (s) of each server's access-point link, per server index."""
         return tuple(self.topology.server_link_pr_s[node] for node in self.server_nodes)
+
+    @property
+    def server_ipt(self) -> tuple[float, ...]:
+        """Each server's YAFS IPT, per server index."""
+        return tuple(self.topology.server_ipt.get(node, REFERENCE_SERVER_IPT) for node in self.server_nodes)
+
+    def server_capacity(self, default: int) -> tuple[int, ...]:
+        """Each server's ``capacity`` per server index (``default`` where the file has none)."""
+        values = (self.topology.server_capacity.get(node) for node in self.server_nodes)
+        return tuple(default if value is None else value for value in values)
 
     @property
     def user_link_bandwidth_bps(self) -> float:

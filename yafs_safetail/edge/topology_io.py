@@ -6,7 +6,9 @@ that YAFS itself ignores:
 * every entity has ``"type"``: ``"user"`` (exactly one), ``"access_point"`` (exactly one) or
   ``"edge_server"`` (one or more); the user may carry ``"x"``, ``"y"`` (its location L);
   an edge server may carry ``"load_device"``, the load-trace device that drives its
-  background users (default: the server's index);
+  background users (default: the server's index), and, for the contention world
+  (``yafs_safetail.contention``), ``"capacity"`` (copies it runs at once; default: the load
+  limit) — its YAFS ``"IPT"`` then sets its speed relative to ``REFERENCE_SERVER_IPT``;
 * the user is linked to the access point, and every edge server is linked to the access
   point by a link carrying ``"condition"``, the distance condition (1..5) whose propagation
   pool the server's RTTs are drawn from;
@@ -20,7 +22,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeGuard
 
@@ -29,6 +31,11 @@ ACCESS_POINT_TYPE = "access_point"
 EDGE_SERVER_TYPE = "edge_server"
 CONDITION_KEY = "condition"
 LOAD_DEVICE_KEY = "load_device"
+CAPACITY_KEY = "capacity"
+IPT_KEY = "IPT"
+#: The IPT of the server the compute traces were measured on (the shipped topologies' value):
+#: a server with this IPT computes at the traces' speed, one with twice as much twice as fast.
+REFERENCE_SERVER_IPT = 1e9
 #: YAFS's link ``BW`` is megabytes per time unit (its delay is bytes / (BW · 1e6) + PR); the
 #: edge model works in bits per second, so one unit of BW is 8e6 bit/s. Converted here, at
 #: the boundary, and nowhere else.
@@ -103,6 +110,8 @@ class EdgeTopology:
         server_link_bandwidth_bps: each access point–server link's bandwidth, per edge server
             node (bits per second, from ``BW``).
         server_link_pr_s: PR of each access point–server link, per edge server node (s).
+        server_ipt: each edge server's YAFS ``IPT`` (``REFERENCE_SERVER_IPT`` when absent).
+        server_capacity: each edge server's ``capacity`` (None when absent).
     """
 
     source: str
@@ -117,6 +126,8 @@ class EdgeTopology:
     user_link_pr_s: float
     server_link_bandwidth_bps: dict[int | str, float]
     server_link_pr_s: dict[int | str, float]
+    server_ipt: dict[int | str, float] = field(default_factory=dict)
+    server_capacity: dict[int | str, int | None] = field(default_factory=dict)
 
 
 def load_topology(source: JsonSource) -> EdgeTopology:
@@ -143,6 +154,8 @@ def load_topology(source: JsonSource) -> EdgeTopology:
     user_location = (0.0, 0.0)
     load_devices: dict[int | str, int | None] = {}
     server_order: list[int | str] = []
+    server_ipt: dict[int | str, float] = {}
+    server_capacity: dict[int | str, int | None] = {}
     for index, entity in enumerate(entities):
         where = f"entity[{index}]"
         if not isinstance(entity, dict):
@@ -178,6 +191,16 @@ def load_topology(source: JsonSource) -> EdgeTopology:
                     name, f"{where}.{LOAD_DEVICE_KEY}", f"not a non-negative integer: {device!r}"
                 )
             load_devices[node] = device
+            ipt = entity.get(IPT_KEY, REFERENCE_SERVER_IPT)
+            if not _is_number(ipt) or ipt <= 0:
+                raise ScenarioError(name, f"{where}.{IPT_KEY}", f"not a positive number: {ipt!r}")
+            server_ipt[node] = float(ipt)
+            capacity = entity.get(CAPACITY_KEY)
+            if capacity is not None and (
+                not isinstance(capacity, int) or isinstance(capacity, bool) or capacity < 1
+            ):
+                raise ScenarioError(name, f"{where}.{CAPACITY_KEY}", f"not a positive integer: {capacity!r}")
+            server_capacity[node] = capacity
             server_order.append(node)
 
     users = [node for node, kind in types.items() if kind == USER_TYPE]
@@ -254,4 +277,6 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         user_link_pr_s=user_link_pr_s,
         server_link_bandwidth_bps=server_link_bps,
         server_link_pr_s=server_link_pr_s,
+        server_ipt=server_ipt,
+        server_capacity=server_capacity,
     )

@@ -222,8 +222,17 @@ class EdgeWorld:
         )
         return np.where(admitted, latency, np.inf)
 
-    def observation(self, step: int, active_users: np.ndarray) -> Observation:
-        """ω^t at step ``step`` given each server's current number of active users ℓ_i."""
+    def observation(self, step: int, active_users: np.ndarray, *, label: int | None = None,
+                    server_max_load: np.ndarray | None = None) -> Observation:
+        """ω^t at step ``step`` given each server's current number of active users ℓ_i.
+
+        Args:
+            step: the world step whose draws the request uses.
+            active_users: ℓ_i per server.
+            label: the ``step`` recorded in the observation (default ``step``; the contention
+                world draws its requests in blocks and labels them by their index in the run).
+            server_max_load: each server's load limit (default ``max_load`` everywhere).
+        """
         active = np.asarray(active_users, dtype=np.int64)
         # Called once per request: flat takes on small arrays keep it to a few microseconds.
         n_levels = self.n_contention_levels
@@ -242,8 +251,8 @@ class EdgeWorld:
             user_location=self._user_location,
             user_uplink_bps=float(self.user_uplink_bps[step]),
             user_downlink_bps=float(self.user_downlink_bps[step]),
-            server_max_load=self._max_load_per_server,
-            step=int(step),
+            server_max_load=self._max_load_per_server if server_max_load is None else server_max_load,
+            step=int(step if label is None else label),
         )
 
     @cached_property

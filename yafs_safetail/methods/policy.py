@@ -45,10 +45,16 @@ class Policy:
         name: the method's name in results (default: the class name).
         observes: False for a policy that never reads ω^t: its :meth:`choose` then gets None,
             which saves building the state for every request.
+        dispatch: how the chosen servers get their copies: ``"all"`` at once (every method of
+            the paper); ``"hedge"``, the first now and each next one if no reply came within
+            :meth:`hedge_delay_s`; ``"tied"``, all at once, the others cancelled as soon as one
+            starts running. The last two exist only in the contention world
+            (``yafs_safetail.contention``), where copies cost other requests something.
     """
 
     name: str = ""
     observes: ClassVar[bool] = True
+    dispatch: ClassVar[str] = "all"
 
     def __init__(self, n_servers: int, rng: np.random.Generator) -> None:
         self.n_servers = int(n_servers)
@@ -63,6 +69,10 @@ class Policy:
             observation: ω^t when the request is issued, or None when ``observes`` is False.
         """
         raise NotImplementedError(f"{type(self).__name__} must implement choose(observation)")
+
+    def hedge_delay_s(self) -> float:
+        """For ``dispatch = "hedge"``: how long to wait for a reply before the next copy."""
+        raise NotImplementedError(f"{type(self).__name__} does not hedge")
 
     def feedback(self, outcome: RequestRecord) -> RequestRecord | None:
         """Called once per completed request, in completion order (optional).

@@ -1,7 +1,7 @@
 """The one list of method names: how a name becomes a policy, and the order results use.
 
 Names: ``SafeTail``, ``Oracle``, ``Rand-x``, ``MinLoad-x``, ``MinProp-x`` (x = the redundancy
-level), and a user's own policy loaded from ``path/to/file.py:ClassName`` or
+level), ``Hedge`` and ``Tied`` (contention world only), and a user's own policy loaded from ``path/to/file.py:ClassName`` or
 ``package.module:ClassName`` (optionally ``NAME=...`` to name it in results).
 """
 
@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
+from yafs_safetail.methods.hedging import Hedge, Tied
 from yafs_safetail.methods.policy import Policy, PolicyError
 
 SAFETAIL = "SafeTail"
@@ -24,6 +25,8 @@ ORACLE = "Oracle"
 #: The redundancy-level families of §V-B, in report order, and their policies.
 BASELINE_FAMILIES: tuple[str, ...] = ("Rand", "MinLoad", "MinProp")
 _FAMILY_POLICIES: dict[str, Callable[..., Policy]] = {"Rand": RandX, "MinLoad": MinLoadX, "MinProp": MinPropX}
+#: The Tail at Scale's requests (``methods.hedging``): they need the contention world.
+CONTENTION_BASELINES: dict[str, Callable[..., Policy]] = {"Hedge": Hedge, "Tied": Tied}
 _BASELINE_RE = re.compile(r"^(Rand|MinLoad|MinProp)-(\d+)$")
 
 
@@ -41,7 +44,8 @@ def parse_method(name: str) -> tuple[str, int | None]:
 
 
 def method_sort_key(name: str) -> tuple[int, str, int]:
-    """Sort key giving SafeTail, Oracle, Rand-x, MinLoad-x, MinProp-x (x ascending), others."""
+    """Sort key giving SafeTail, Oracle, Rand-x, MinLoad-x, MinProp-x (x ascending), Hedge,
+    Tied, others."""
     family, level = parse_method(name)
     if name == SAFETAIL:
         return (0, "", 0)
@@ -49,7 +53,9 @@ def method_sort_key(name: str) -> tuple[int, str, int]:
         return (1, "", 0)
     if family in BASELINE_FAMILIES and level is not None:
         return (2 + BASELINE_FAMILIES.index(family), "", level)
-    return (2 + len(BASELINE_FAMILIES), name, 0)
+    if name in CONTENTION_BASELINES:
+        return (2 + len(BASELINE_FAMILIES), "", list(CONTENTION_BASELINES).index(name))
+    return (3 + len(BASELINE_FAMILIES), name, 0)
 
 
 def sort_methods(names: Iterable[str]) -> list[str]:
@@ -76,7 +82,8 @@ def baseline_names(redundancy_levels: Sequence[int]) -> list[str]:
 
 
 def make_baseline(name: str, n_servers: int, rng: np.random.Generator) -> Policy:
-    """A baseline from its name: ``"Oracle"``, ``"Rand-x"``, ``"MinLoad-x"``, ``"MinProp-x"``.
+    """A baseline from its name: ``"Oracle"``, ``"Rand-x"``, ``"MinLoad-x"``, ``"MinProp-x"``,
+    ``"Hedge"``, ``"Tied"``.
 
     Raises:
         PolicyError: an unknown name or x outside 1..n.
@@ -84,9 +91,12 @@ def make_baseline(name: str, n_servers: int, rng: np.random.Generator) -> Policy
     family, level = parse_method(name)
     if name == ORACLE:
         return Oracle(n_servers, rng)
+    if name in CONTENTION_BASELINES:
+        return CONTENTION_BASELINES[name](n_servers, rng)
     if level is None:
         raise PolicyError(
-            f"method: unknown baseline {name!r}; expected Oracle, Rand-x, MinLoad-x or MinProp-x"
+            f"method: unknown baseline {name!r}; expected Oracle, Rand-x, MinLoad-x, MinProp-x, "
+            "Hedge or Tied"
         )
     return _FAMILY_POLICIES[family](n_servers, rng, level)
 

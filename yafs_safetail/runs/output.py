@@ -4,7 +4,7 @@ A run writes into a fresh temporary folder beside its target (``.NAME.partial-XX
 renames it into place only when everything is written. Before it starts, the target is
 checked: ``/``, the home folder, the working folder, the project and any folder holding one
 of them are refused; a folder that exists and is not empty must be a finished results folder
-of this tool (it has ``run.json`` and ``requests.csv``), and is replaced only with
+of this tool (it has ``run.json`` and ``requests.csv``, or a load sweep's ``sweep.csv``), and is replaced only with
 ``overwrite``. A lock beside the target (``.NAME.lock``, held with ``flock`` for the whole run,
 so a killed run never leaves a stale lock) makes a second run on the same target fail at once.
 Whatever happens, the temporary folder is removed and the lock released; the temporary
@@ -29,6 +29,8 @@ from yafs_safetail.edge.scenario import REPOSITORY
 
 RUN_FILE = "run.json"
 REQUESTS_FILE = "requests.csv"
+#: A load sweep's table (experiments/load_sweep.py), which it writes instead of requests.csv.
+SWEEP_FILE = "sweep.csv"
 
 
 class OutputError(ValueError):
@@ -37,12 +39,13 @@ class OutputError(ValueError):
 
 def is_results_folder(folder: Path) -> bool:
     """True for a finished results folder of this tool: ``run.json`` naming the package
-    version, beside ``requests.csv``."""
+    version, beside ``requests.csv`` (or a load sweep's ``sweep.csv``)."""
     try:
         run = json.loads((folder / RUN_FILE).read_text())
     except (OSError, ValueError):
         return False
-    return isinstance(run, dict) and "package_version" in run and (folder / REQUESTS_FILE).is_file()
+    return isinstance(run, dict) and "package_version" in run and (
+        (folder / REQUESTS_FILE).is_file() or (folder / SWEEP_FILE).is_file())
 
 
 def refuse_protected(folder: Path, option: str = "--out") -> Path:

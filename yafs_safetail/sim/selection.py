@@ -52,6 +52,11 @@ class PolicySelection(Selection):
     def __init__(self, edge_model: EdgeModel, policy: Policy,
                  on_record: Callable[[RequestRecord], None] | None = None) -> None:
         super().__init__()
+        if policy.dispatch != "all":
+            raise PolicyError(
+                f"{policy.name}: dispatch {policy.dispatch!r} needs the contention world "
+                "(experiments/load_sweep.py); the single-user world sends every copy at once"
+            )
         self.edge_model = edge_model
         self.policy = policy
         self.name = policy.name

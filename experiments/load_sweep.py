@@ -1,0 +1,121 @@
+"""Many users at once: every method's latency and copies against the offered load.
+
+    python experiments/load_sweep.py --uc 1 --users 50 --loads 0.1,0.3,0.5,0.7,0.9 --seed 0 \\
+        --steps-scale 1 --out results/sweep_uc1
+
+Writes OUT/sweep.csv (one row per load and method: load, method, n_requests, p50_s, p99_s,
+mean_n_selected, fallback_rate, ...), OUT/SWEEP.md (the table and the goals of issue 12, each
+computed), OUT/sweep_latency.png (p50 and p99 against load), OUT/sweep_copies.png and
+OUT/run.json (the settings and this command). SafeTail is trained at each load (the preset's
+training budget × --steps-scale) and tested greedily; see docs/contention.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from yafs_safetail import __version__
+from yafs_safetail.cli import (
+    ArgumentParser,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    run_cli,
+)
+from yafs_safetail.contention.sweep import (
+    DEFAULT_SWEEP_METHODS,
+    SweepConfig,
+    checks_markdown,
+    markdown_table,
+    plot_sweep,
+    run_sweep,
+)
+from yafs_safetail.contention.world import ContentionConfig, ContentionError
+from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
+from yafs_safetail.methods.registry import make_baseline
+from yafs_safetail.methods.safetail.presets import PRESET_NAMES
+from yafs_safetail.results.files import write_text_atomic
+from yafs_safetail.runs.output import StagedOutput
+
+
+def load_list(text: str) -> tuple[float, ...]:
+    try:
+        loads = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if not loads or any(not 0 < load < 10 for load in loads) or len(set(loads)) != len(loads):
+        raise argparse.ArgumentTypeError(f"expected distinct loads in (0, 10), got {text!r}")
+    return tuple(sorted(loads))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog="load_sweep.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--uc", type=int, choices=(1, 2, 3), default=1, help="use case (default 1)")
+    parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
+    parser.add_argument("--loads", type=load_list, default=(0.1, 0.3, 0.5, 0.7, 0.9),
+                        help="offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    parser.add_argument("--steps-scale", type=positive_float, default=1.0,
+                        help="scales SafeTail's training requests and the 20,000 test requests per load")
+    parser.add_argument("--preset", choices=PRESET_NAMES, default="paper", help="SafeTail's preset (default paper)")
+    parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
+                        help="a full server queues copies FIFO (default) or refuses them (the paper)")
+    parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
+    parser.add_argument("--background", action="store_true",
+                        help="add the load trace's background tenants on top of the users' load")
+    parser.add_argument("--methods", default=",".join(DEFAULT_SWEEP_METHODS),
+                        help="fixed methods, comma-separated (default: all)")
+    parser.add_argument("--no-safetail", action="store_true", help="fixed methods only")
+    parser.add_argument("--topology", type=Path, default=DEFAULT_TOPOLOGY, help="topology JSON")
+    parser.add_argument("--placement", type=Path, default=DEFAULT_PLACEMENT, help="placement JSON")
+    parser.add_argument("--out", type=Path, required=True, help="new output folder")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier sweep folder there")
+    args = parser.parse_args(argv)
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    for name in methods:  # unknown names fail before anything runs
+        make_baseline(name, 5, np.random.default_rng(0))
+    config = SweepConfig(
+        base=ContentionConfig(use_case=args.uc, seed=args.seed, users=args.users,
+                              queue=args.servers == "queue", cancel=not args.no_cancel,
+                              background=args.background, topology=args.topology,
+                              placement=args.placement),
+        loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
+        steps_scale=args.steps_scale)
+    if config.test_requests < 100:
+        raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
+                              "at least 100 are needed for a p99")
+    command = shlex.join(["python", "experiments/load_sweep.py", *(sys.argv[1:] if argv is None else argv)])
+    output = StagedOutput(args.out, args.overwrite)
+    with output as staging:
+        frame = run_sweep(config, log=lambda line: print(line, file=sys.stderr, flush=True))
+        frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
+        table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
+        write_text_atomic(staging / "SWEEP.md",
+                          f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {args.seed})\n\n"
+                          f"`{command}`\n\n" + markdown_table(table) + "\n\n## Goals\n\n"
+                          + checks_markdown(frame, config.loads))
+        plot_sweep(frame, staging)
+        write_text_atomic(staging / "run.json", json.dumps({
+            "package_version": __version__, "command": command, "kind": "load_sweep",
+            "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
+            "steps_scale": args.steps_scale, "preset": args.preset, "servers": args.servers,
+            "cancel": not args.no_cancel, "background": args.background, "methods": list(methods),
+            "safetail": not args.no_safetail, "train_requests": config.train_requests,
+            "test_requests": config.test_requests, "topology": str(args.topology),
+            "placement": str(args.placement)}, indent=1) + "\n")
+        output.publish()
+    print(checks_markdown(frame, config.loads))
+    print(f"written: {args.out / 'sweep.csv'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run_cli(main))

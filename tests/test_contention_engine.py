@@ -1,0 +1,144 @@
+"""The contention engine against hand-computed cases and queueing theory."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from yafs_safetail.contention.engine import (
+    EngineError,
+    EngineSettings,
+    RequestBlock,
+    RequestOutcome,
+    ServerSpec,
+    run_engine,
+)
+from yafs_safetail.contention.queueing import QUEUEING_CASES, simulate_case
+
+
+class Fixed:
+    """Sends request j to ``plan[j]``; records outcomes."""
+
+    wants_outcomes = True
+
+    def __init__(self, plan, mode="all", delay_s=math.inf):
+        self.plan, self.mode, self.delay_s = plan, mode, delay_s
+        self.outcomes: list[RequestOutcome] = []
+
+    def choose(self, request, active_users):
+        return self.plan[request]
+
+    def hedge_delay_s(self):
+        return self.delay_s
+
+    def completed(self, outcome):
+        self.outcomes.append(outcome)
+
+
+def engine(work, emit, plan, *, slots=1, speed=(1.0, 1.0, 0.5, 1 / 3), queue=False, cancel=True,
+           rtt=0.0, mode="all", delay_s=math.inf, fallback_s=99.0):
+    n_servers = len(work[0])
+    zeros = [[0.0] * n_servers for _ in work]
+    block = RequestBlock(first=0, input_transfer_s=zeros, output_transfer_s=zeros,
+                         propagation_s=[[rtt] * n_servers for _ in work], work_s=work)
+    settings = EngineSettings(servers=tuple(ServerSpec(slots, speed) for _ in range(n_servers)),
+                              contention_levels=1, queue=queue, cancel=cancel, fallback_latency_s=fallback_s)
+    dispatcher = Fixed(plan, mode, delay_s)
+    return run_engine(settings, emit, len(work), lambda _: block, dispatcher), dispatcher
+
+
+def test_processor_sharing_splits_the_server_equally():
+    # A (work 1) alone for 0.5 s, then shares with B (work 1) at half speed until it ends at
+    # 1.5 s; B then runs alone for its last 0.5: ends at 2.0 s.
+    result, _ = engine([[1.0], [1.0]], [0.0, 0.5], [(0,), (0,)], slots=2)
+    assert result.latency_s.tolist() == pytest.approx([1.5, 1.5])
+    assert result.busy_s == pytest.approx(1.5 + 1.5)
+
+
+def test_a_full_server_refuses_and_the_request_falls_back():
+    result, outcomes = engine([[1.0], [1.0]], [0.0, 0.5], [(0,), (0,)], slots=1)
+    assert result.latency_s.tolist() == [1.0, 99.0]
+    assert result.fallback.tolist() == [False, True]
+    by_request = {o.request: o for o in outcomes.outcomes}
+    assert by_request[1].refused == 1 and by_request[1].winner == -1
+    assert [o.request for o in outcomes.outcomes] == [1, 0]  # in completion order
+
+
+def test_a_fifo_queue_makes_the_copy_wait():
+    result, _ = engine([[1.0], [1.0]], [0.0, 0.5], [(0,), (0,)], slots=1, queue=True)
+    assert result.latency_s.tolist() == pytest.approx([1.0, 1.5])
+    assert not result.fallback.any()
+
+
+def test_cancellation_stops_the_slower_copy_after_the_propagation():
+    work = [[1.0, 3.0]]
+    with_cancel, _ = engine(work, [0.0], [(0, 1)], slots=1, rtt=0.1)
+    without, _ = engine(work, [0.0], [(0, 1)], slots=1, rtt=0.1, cancel=False)
+    # Reply from server 0 at 0.1 + 1 + 0.1; the cancel reaches server 1 0.1 s later.
+    assert with_cancel.latency_s[0] == pytest.approx(1.2)
+    assert with_cancel.cancelled_copies == 1 and without.cancelled_copies == 0
+    assert with_cancel.busy_s == pytest.approx(1.0 + 1.2)
+    assert without.busy_s == pytest.approx(1.0 + 3.0)
+
+
+def test_hedge_sends_the_second_copy_only_when_the_first_is_late():
+    work = [[5.0, 0.5], [0.2, 0.5]]
+    result, _ = engine(work, [0.0, 10.0], [(0, 1), (0, 1)], slots=1, mode="hedge", delay_s=1.0)
+    # Request 0: no reply by 1 s, the hedge to server 1 answers at 1.5 s. Request 1: server 0
+    # answers at 0.2 s, before the hedge delay: one copy only.
+    assert result.latency_s.tolist() == pytest.approx([1.5, 0.2])
+    assert result.n_copies.tolist() == [2, 1]
+
+
+def test_hedge_goes_at_once_when_the_first_copy_is_refused():
+    work = [[4.0, 1.0], [1.0, 0.3]]
+    result, _ = engine(work, [0.0, 1.0], [(0,), (0, 1)], slots=1, mode="hedge", delay_s=10.0)
+    assert result.latency_s[1] == pytest.approx(0.3)
+    assert result.refused.tolist() == [0, 1]
+
+
+def test_tied_copies_cancel_each_other_once_one_runs():
+    work = [[1.0, 0.4]]
+    result, _ = engine(work, [0.0], [(0, 1)], slots=1, rtt=0.05, mode="tied")
+    # Both start at 0.05; each cancel takes 0.05 s: the first to start (server 0, the first
+    # sent) cancels server 1's copy, which therefore never replies.
+    assert result.cancelled_copies == 1
+    assert result.latency_s[0] == pytest.approx(0.05 + 1.0 + 0.05)
+    queued, _ = engine([[1.0, 1.0], [2.0, 0.5]], [0.0, 0.1], [(0,), (0, 1)], slots=1, queue=True,
+                       mode="tied")
+    # Request 1 waits at server 0 but starts at once on server 1, which cancels the waiting copy.
+    assert queued.latency_s[1] == pytest.approx(0.5)
+    assert queued.busy_s == pytest.approx(1.0 + 0.5)
+
+
+def test_unknown_modes_and_unsorted_times_are_refused():
+    with pytest.raises(EngineError, match="dispatch mode 'best'"):
+        engine([[1.0]], [0.0], [(0,)], mode="best")
+    with pytest.raises(EngineError, match="non-decreasing"):
+        engine([[1.0], [1.0]], [1.0, 0.5], [(0,), (0,)])
+
+
+@pytest.mark.parametrize("case", QUEUEING_CASES)
+@pytest.mark.parametrize("utilisation", [0.3, 0.6])
+def test_matches_mm1_within_two_percent(case, utilisation):
+    run = simulate_case(case, n_servers=4, service_rate=1.0, utilisation=utilisation,
+                        n_requests=60_000, seed=11)
+    assert run.rel_error < 0.02, (run.simulated_mean_s, run.theory_mean_s)
+
+
+def test_a_wrong_model_would_fail_the_queueing_check():
+    # The check can fail: without cancellation, send-to-all is no M/M/1 of rate kμ.
+    run = simulate_case("all-cancel", n_servers=4, service_rate=1.0, utilisation=0.3,
+                        n_requests=5_000, seed=1)
+    assert run.theory_mean_s == pytest.approx(1 / (4 - 1.2))
+    assert abs(np.log(run.simulated_mean_s / (1 / (1 - 0.3)))) > 0.5  # far from one M/M/1 at λ/k
+
+
+def test_hedge_without_a_delay_yet_sends_one_copy_and_ends():
+    # Before Hedge has latencies its delay is infinite: one copy, no timer at infinity.
+    result, _ = engine([[1.0, 0.1], [1.0, 0.1]], [0.0, 0.5], [(0, 1), (0, 1)], slots=2, mode="hedge",
+                       queue=True)
+    assert result.latency_s.tolist() == pytest.approx([1.5, 1.5])
+    assert result.n_copies.tolist() == [1, 1] and result.end_s < 10

@@ -1,0 +1,184 @@
+"""The contention world built from the traces and topology, any Policy in it, the load sweep."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from yafs_safetail.contention.run import run_policy, summarise
+from yafs_safetail.contention.world import (
+    ContentionConfig,
+    ContentionError,
+    ContentionWorld,
+    compute_speed_table,
+)
+from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, REPOSITORY, ScenarioError
+from yafs_safetail.edge.topology_io import load_topology
+from yafs_safetail.methods.policy import PolicyError
+from yafs_safetail.methods.registry import make_baseline
+
+SWEEP = REPOSITORY / "experiments" / "load_sweep.py"
+
+
+def policy(name: str, seed: int = 0):
+    return make_baseline(name, 5, np.random.default_rng(seed))
+
+
+@pytest.fixture(scope="module")
+def busy_world() -> ContentionWorld:
+    return ContentionWorld(ContentionConfig(n_requests=3000, users=20, load=0.6, seed=4, queue=True,
+                                            block_requests=1000))
+
+
+def test_one_user_alone_gets_eq1_latency():
+    # Requests far apart, no background: every copy runs alone, so its latency is Eq. 1 with
+    # the one-process compute time (transfers and RTT at contention level 0).
+    world = ContentionWorld(ContentionConfig(n_requests=50, users=1, rate_per_user_hz=1e-3,
+                                             background=False, block_requests=50))
+    run = run_policy(world, policy("MinProp-1"))
+    block = world.block_world(0)
+    server = 0  # the nearest server in the paper topology
+    expected = (2 * block.input_transfer_by_level_s[:, server, 0] + 2 * block.rtt_s[:, server]
+                + block.compute_by_processes_s[:, server, 0] + 2 * block.output_transfer_by_level_s[:, server, 0])
+    np.testing.assert_allclose(run.result.latency_s, expected, rtol=1e-9)
+
+
+def test_same_seed_same_results_and_common_random_numbers(busy_world):
+    again = ContentionWorld(busy_world.config)
+    first, second = run_policy(busy_world, policy("Rand-2")), run_policy(again, policy("Rand-2"))
+    assert np.array_equal(first.result.latency_s, second.result.latency_s)
+    assert np.array_equal(busy_world.emit_s, again.emit_s)
+    other = ContentionWorld(replace(busy_world.config, seed=5))
+    assert not np.array_equal(other.emit_s, busy_world.emit_s)
+
+
+def test_redundancy_costs_under_load(busy_world):
+    # Past the point where five copies per request overload the servers, Oracle loses to
+    # single dispatch; with cancellation off, copies also cost more server time.
+    oracle, single = summarise(run_policy(busy_world, policy("Oracle"))), summarise(
+        run_policy(busy_world, policy("MinLoad-1")))
+    assert oracle["p99_s"] > single["p99_s"]
+    assert oracle["server_s_per_request"] > 2 * single["server_s_per_request"]
+    no_cancel = summarise(run_policy(busy_world, policy("Rand-2"), cancel=False))
+    cancel = summarise(run_policy(busy_world, policy("Rand-2")))
+    assert no_cancel["server_s_per_request"] > cancel["server_s_per_request"]
+    assert no_cancel["cancelled_per_request"] == 0 < cancel["cancelled_per_request"]
+
+
+def test_hedge_and_tied_run_and_hedge_sends_few_extra_copies(busy_world):
+    hedge = summarise(run_policy(busy_world, policy("Hedge")))
+    tied = summarise(run_policy(busy_world, policy("Tied")))
+    assert 1.0 <= hedge["mean_n_selected"] < 1.3
+    assert tied["mean_n_selected"] == 2.0 and np.isfinite(tied["p99_s"])
+
+
+def test_hedge_and_tied_are_refused_in_the_single_user_world(paper_scenario):
+    from yafs_safetail.sim.hooks import EdgeModel
+    from yafs_safetail.sim.selection import PolicySelection
+
+    world = ContentionWorld(ContentionConfig(n_requests=10, users=1)).block_world(0)
+    with pytest.raises(PolicyError, match="Hedge: dispatch 'hedge' needs the contention world"):
+        PolicySelection(EdgeModel(world), policy("Hedge"))
+
+
+def test_load_sets_the_arrival_rate():
+    world = ContentionWorld(ContentionConfig(n_requests=20_000, users=10, load=0.5, background=False))
+    assert world.offered_load() == pytest.approx(0.5, rel=0.03)
+    assert world.rate_for_load(1.0) == pytest.approx(world.total_slots / world.mean_service_s)
+
+
+def test_heterogeneous_servers_from_the_topology(tmp_path):
+    data = json.loads(DEFAULT_TOPOLOGY.read_text())
+    servers = [e for e in data["entity"] if e["type"] == "edge_server"]
+    servers[0]["IPT"] = 2e9
+    servers[1]["capacity"] = 8
+    path = tmp_path / "hetero.json"
+    path.write_text(json.dumps(data))
+    world = ContentionWorld(ContentionConfig(n_requests=10, users=1, topology=path))
+    assert world.capacity[:2] == (4, 8) and world.total_slots == 24
+    speeds = world.engine_settings().servers
+    assert speeds[0].speed[1] == pytest.approx(2.0) and speeds[2].speed[1] == pytest.approx(1.0)
+    assert world.observation(0, [0] * 5).server_max_load.tolist() == [4, 8, 4, 4, 4]
+    servers[1]["capacity"] = 0
+    path.write_text(json.dumps(data))
+    with pytest.raises(ScenarioError, match=r"hetero.json: entity\[\d\]\.capacity: not a positive integer: 0"):
+        load_topology(path)
+
+
+def test_speed_table_follows_the_traced_compute_times():
+    table = compute_speed_table(np.array([1.0, 1.5, 2.0]), 1.0, 6)
+    assert table[1:] == pytest.approx((1.0, 1 / 1.5, 0.5, 0.5 * 3 / 4, 0.5 * 3 / 5, 0.5 * 3 / 6))
+
+
+def test_arrivals_from_a_trace_and_its_errors(tmp_path):
+    good = tmp_path / "arrivals.csv"
+    good.write_text("time_s,user\n2.0,1\n0.5,0\n1.0,2\n")
+    world = ContentionWorld(ContentionConfig(users=3, arrivals_csv=good, load=None))
+    assert world.emit_s.tolist() == [0.5, 1.0, 2.0] and world.user.tolist() == [0, 2, 1]
+    for text, message in (("t,u\n1,0\n", "header: expected the columns time_s,user"),
+                          ("time_s,user\n1,7\n", "line 2: user 7 is not in 0..2"),
+                          ("time_s,user\nx,0\n", "line 2: not a number"),
+                          ("time_s,user\n", "rows: no arrivals")):
+        good.write_text(text)
+        with pytest.raises(ContentionError, match=message):
+            ContentionWorld(ContentionConfig(users=3, arrivals_csv=good, load=None))
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    ({"users": 0}, "--users: expected a positive integer"),
+    ({"load": None}, "give one of them"),
+    ({"rate_per_user_hz": float("nan")}, "--rate-per-user: expected a positive number"),
+    ({"load": -1.0}, "--load: expected a positive number"),
+])
+def test_bad_settings_are_one_line(changes, message):
+    with pytest.raises(ContentionError, match=message):
+        ContentionWorld(replace(ContentionConfig(n_requests=10), **changes))
+
+
+def test_load_sweep_small_budget(tmp_path):
+    out = tmp_path / "sweep"
+    command = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.2,0.8", "--steps-scale", "0.02",
+               "--methods", "Oracle,MinLoad-1,Tied", "--seed", "3", "--out", str(out)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    frame = pd.read_csv(out / "sweep.csv")
+    for column in ("load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"):
+        assert column in frame.columns
+    assert sorted(set(frame["method"])) == ["MinLoad-1", "Oracle", "SafeTail", "Tied"]
+    assert (frame["n_requests"] == 380).all() and set(frame["load"]) == {0.2, 0.8}
+    for name in ("SWEEP.md", "sweep_latency.png", "sweep_copies.png", "run.json"):
+        assert (out / name).is_file()
+    # Same seed, same file; an existing sweep is kept unless --overwrite.
+    again = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 2 and "--overwrite" in again.stderr and "Traceback" not in again.stderr
+    second = tmp_path / "sweep2"
+    subprocess.run([*command[:-1], str(second)], check=True, capture_output=True, timeout=600)
+    assert (second / "sweep.csv").read_bytes() == (out / "sweep.csv").read_bytes()
+
+
+def test_load_sweep_bad_input_is_one_line(tmp_path):
+    done = subprocess.run([sys.executable, str(SWEEP), "--loads", "0.5,x", "--out", str(tmp_path / "s")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "--loads" in done.stderr and "Traceback" not in done.stderr
+    done = subprocess.run([sys.executable, str(SWEEP), "--methods", "Best-3", "--out", str(tmp_path / "s")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "unknown baseline 'Best-3'" in done.stderr
+    assert not Path(tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize(("script", "args", "last"), [
+    ("bench_queueing.py", ["--requests", "3000", "--servers", "3"], "max_rel_error="),
+    ("bench_multiuser.py", ["--sizes", "500,1000", "--users", "20"], "requests=1000 seconds="),
+])
+def test_benchmarks_small_budget(script, args, last):
+    done = subprocess.run([sys.executable, str(REPOSITORY / "benchmarks" / script), *args],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1].startswith(last)

@@ -1,0 +1,132 @@
+"""Any :class:`~yafs_safetail.methods.policy.Policy` in the contention world, and what it achieved.
+
+``run_policy(world, policy)`` drives the policy through :func:`~yafs_safetail.contention.engine.run_engine`
+(ω^t from the request's world block, the policy's choice checked, a
+:class:`~yafs_safetail.record.RequestRecord` as its feedback when it wants one) and returns
+per-request arrays; :func:`summarise` turns them into one row of figures.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from yafs_safetail.contention.engine import EngineResult, RequestOutcome, run_engine
+from yafs_safetail.contention.world import ContentionWorld
+from yafs_safetail.methods.policy import Policy, PolicyError
+from yafs_safetail.record import RequestRecord
+
+#: The share of a run's first requests left out of its figures: the servers start empty.
+WARMUP_FRACTION = 0.05
+
+
+class PolicyDispatcher:
+    """The engine's view of a policy: choices checked, records built only when wanted."""
+
+    def __init__(self, world: ContentionWorld, policy: Policy) -> None:
+        self.world = world
+        self.policy = policy
+        self.mode = policy.dispatch
+        self.wants_outcomes = type(policy).feedback is not Policy.feedback
+        self._checked: set[tuple[int, ...]] = set()
+        self._n = world.n_servers
+
+    def choose(self, request: int, active_users: list[int]) -> Sequence[int]:
+        observation = self.world.observation(request, active_users) if self.policy.observes else None
+        chosen = self.policy.choose(observation)
+        key = tuple(int(i) for i in chosen)
+        if key not in self._checked:
+            if not key or len(set(key)) != len(key) or not all(0 <= i < self._n for i in key):
+                raise PolicyError(
+                    f"{self.policy.name}: choose() must return distinct server indices in "
+                    f"0..{self._n - 1}, got {key!r}"
+                )
+            self._checked.add(key)
+        return key
+
+    def hedge_delay_s(self) -> float:
+        return self.policy.hedge_delay_s()
+
+    def completed(self, outcome: RequestOutcome) -> None:
+        transfer_s = outcome.input_transfer_s + outcome.output_transfer_s
+        record = RequestRecord(
+            method=self.policy.name,
+            step=outcome.request,
+            request_id=outcome.request,
+            time_emit_s=outcome.emit_s,
+            latency_s=outcome.latency_s,
+            target_s=self.world.target_s(outcome.request),
+            servers=tuple(sorted(outcome.servers)),
+            n_servers=self._n,
+            refused=outcome.refused,
+            fallback=outcome.fallback,
+            winner=outcome.winner,
+            upload_s=transfer_s,
+            propagation_s=2.0 * outcome.propagation_s,
+            download_s=transfer_s,
+            compute_s=outcome.server_s,
+        )
+        self.policy.feedback(record)
+
+
+@dataclass
+class PolicyRun:
+    """One method's run in one contention world.
+
+    Attributes:
+        method: the policy's name.
+        result: the engine's per-request arrays.
+        wall_s: wall time of the simulation (including the policy's decisions and learning).
+    """
+
+    method: str
+    result: EngineResult
+    wall_s: float
+
+
+def run_policy(world: ContentionWorld, policy: Policy, *, queue: bool | None = None,
+               cancel: bool | None = None) -> PolicyRun:
+    """Every request of ``world`` under ``policy`` (options default to the world's config)."""
+    if policy.n_servers != world.n_servers:
+        raise PolicyError(f"{policy.name}: built for {policy.n_servers} servers, the topology has {world.n_servers}")
+    started = time.perf_counter()
+    result = run_engine(world.engine_settings(queue, cancel), world.emit_s.tolist(),
+                        world.config.block_requests, world.block, PolicyDispatcher(world, policy))
+    return PolicyRun(policy.name, result, time.perf_counter() - started)
+
+
+SUMMARY_COLUMNS: tuple[str, ...] = (
+    "method", "n_requests", "p50_s", "p90_s", "p95_s", "p99_s", "mean_s", "mean_n_selected",
+    "fallback_rate", "refused_per_request", "cancelled_per_request", "server_s_per_request",
+)
+
+
+def summarise(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> dict[str, float | int | str]:
+    """One row of :data:`SUMMARY_COLUMNS` over the requests after the warm-up.
+
+    ``server_s_per_request`` is the server time copies ran, cancelled or not, per request: what
+    redundancy costs the servers.
+    """
+    result = run.result
+    n = result.latency_s.shape[0]
+    keep = slice(min(int(warmup_fraction * n), n - 1), n)
+    latency = result.latency_s[keep]
+    p50, p90, p95, p99 = np.percentile(latency, [50, 90, 95, 99]).tolist() if latency.size else [math.nan] * 4
+    return {
+        "method": run.method,
+        "n_requests": int(latency.size),
+        "p50_s": p50,
+        "p90_s": p90,
+        "p95_s": p95,
+        "p99_s": p99,
+        "mean_s": float(np.mean(latency)),
+        "mean_n_selected": float(np.mean(result.n_copies[keep])),
+        "fallback_rate": float(np.mean(result.fallback[keep])),
+        "refused_per_request": float(np.mean(result.refused[keep])),
+        "cancelled_per_request": result.cancelled_copies / n,
+        "server_s_per_request": result.busy_s / n,
+    }

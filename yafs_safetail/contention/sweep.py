@@ -1,0 +1,212 @@
+"""The load sweep: every method at every offered load, in the contention world.
+
+For each load: a training world and a test world (independent streams, same users and
+settings); SafeTail learns on the training world at that load (its preset's learner, one
+training round every κ requests, Eq. 5 against τ) and is tested greedily; every other method
+runs on the test world only. All methods of a load see the same arrivals and per-request draws
+(common random numbers). One row per (load, method) goes to ``sweep.csv``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from yafs_safetail.contention.run import SUMMARY_COLUMNS, run_policy, summarise
+from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
+from yafs_safetail.methods.policy import Policy
+from yafs_safetail.methods.registry import SAFETAIL, make_baseline
+from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
+from yafs_safetail.runs.workers import method_rng
+
+#: Every fixed method of the sweep (SafeTail is added unless left out).
+DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
+    "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
+)
+#: Test requests per load at steps scale 1.
+TEST_REQUESTS = 20_000
+#: sweep.csv's columns, in order.
+#: (No wall times: the same seed must give the same file.)
+SWEEP_COLUMNS: tuple[str, ...] = ("load", "offered_load", *SUMMARY_COLUMNS, "train_requests")
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """A load sweep.
+
+    Attributes:
+        base: the contention world of every load (its ``load``, ``phase`` and ``n_requests``
+            are set per load and phase).
+        loads: offered utilisations.
+        methods: fixed methods (baseline names).
+        safetail: also train and test SafeTail at each load.
+        preset: SafeTail's learner preset.
+        steps_scale: scales SafeTail's training budget (the preset's) and the test requests.
+    """
+
+    base: ContentionConfig
+    loads: tuple[float, ...]
+    methods: tuple[str, ...] = DEFAULT_SWEEP_METHODS
+    safetail: bool = True
+    preset: str = "paper"
+    steps_scale: float = 1.0
+
+    @property
+    def test_requests(self) -> int:
+        return scaled_steps(TEST_REQUESTS, self.steps_scale)
+
+    @property
+    def train_requests(self) -> int:
+        return get_preset(self.preset, self.base.use_case,
+                          train_steps=scaled_steps(get_preset(self.preset, self.base.use_case).train_steps,
+                                                   self.steps_scale)).train_steps
+
+
+def _safetail_policy(world: ContentionWorld, preset: str, seed: int, train_steps: int) -> Policy:
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+    from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
+
+    use_case = world.use_case
+    config = get_preset(preset, use_case.number, train_steps=train_steps)
+    learner = SafeTailLearner(
+        world.n_servers,
+        state_dim(world.n_servers, len(use_case.gamma_columns), len(world.scenario.user_location)),
+        config, seed, metadata={"use_case": use_case.number, "world": "contention"})
+    return SafeTailPolicy(world.n_servers, method_rng(seed, SAFETAIL), learner=learner,
+                          scales=StateScales.for_use_case(use_case.number), training=True)
+
+
+def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: None) -> pd.DataFrame:
+    """Every (load, method) row of ``sweep.csv``, loads ascending, methods in the given order."""
+    rows: list[dict[str, Any]] = []
+    inputs = scenario = None
+    for load in config.loads:
+        test_config = replace(config.base, load=load, rate_per_user_hz=None, phase="test",
+                              n_requests=config.test_requests)
+        test_world = ContentionWorld(test_config, inputs, scenario)
+        inputs, scenario = test_world.inputs, test_world.scenario
+        policies: list[tuple[Policy, int]] = []
+        if config.safetail:
+            train_world = ContentionWorld(replace(test_config, phase="train", n_requests=config.train_requests),
+                                          inputs, scenario)
+            safetail = _safetail_policy(train_world, config.preset, config.base.seed, config.train_requests)
+            trained = run_policy(train_world, safetail)
+            log(f"load {load:g}: SafeTail trained on {config.train_requests} requests in {trained.wall_s:.1f} s")
+            safetail.training = False  # type: ignore[attr-defined]
+            policies.append((safetail, config.train_requests))
+        for name in config.methods:
+            policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name)), 0))
+        for policy, train_requests in policies:
+            run = run_policy(test_world, policy)
+            row = {"load": load, "offered_load": test_world.offered_load(), **summarise(run),
+                   "train_requests": train_requests}
+            rows.append(row)
+            log(f"load {load:g}: {policy.name:<10} p50 {row['p50_s']:.3f} s  p99 {row['p99_s']:.3f} s  "
+                f"copies {row['mean_n_selected']:.2f}  fallback {row['fallback_rate']:.3f}  ({run.wall_s:.1f} s)")
+    return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
+
+
+def best_fixed_p99(frame: pd.DataFrame, load: float) -> tuple[str, float]:
+    """The fixed method (not SafeTail) with the lowest p99 at ``load``."""
+    rows = frame[(frame["load"] == load) & (frame["method"] != SAFETAIL)]
+    best = rows.loc[rows["p99_s"].idxmin()]
+    return str(best["method"]), float(best["p99_s"])
+
+
+def sweep_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
+    """The issue's goals, each as (claim, holds, measured) — computed, never asserted."""
+    loads = sorted(frame["load"].unique())
+    checks: list[tuple[str, bool, str]] = []
+
+    def p99(method: str, load: float) -> float:
+        values = frame[(frame["method"] == method) & (frame["load"] == load)]["p99_s"]
+        return float(values.iloc[0]) if len(values) else math.nan
+
+    if "Oracle" in set(frame["method"]) and len(loads) > 1:
+        low, high = loads[0], loads[-1]
+        ratio = p99("Oracle", high) / p99("Oracle", low)
+        checks.append((f"Oracle p99 at load {high:g} >= 1.5x at load {low:g}", ratio >= 1.5, f"{ratio:.2f}x"))
+        singles = [m for m in frame["method"].unique() if m.endswith("-1")]
+        worse_at = [load for load in loads if singles and p99("Oracle", load) > min(p99(m, load) for m in singles)]
+        checks.append(("Oracle worse than single dispatch beyond some load", bool(worse_at),
+                       f"from load {worse_at[0]:g}" if worse_at else "never"))
+    if SAFETAIL in set(frame["method"]):
+        copies = [float(frame[(frame["method"] == SAFETAIL) & (frame["load"] == load)]["mean_n_selected"].iloc[0])
+                  for load in loads]
+        checks.append(("SafeTail: fewer copies as load rises", copies[-1] < copies[0],
+                       " -> ".join(f"{c:.2f}" for c in copies)))
+        for load in loads:
+            method, best = best_fixed_p99(frame, load)
+            ours = p99(SAFETAIL, load)
+            checks.append((f"SafeTail p99 <= 1.05x best fixed at load {load:g}", ours <= 1.05 * best,
+                           f"{ours:.3f} s vs {method} {best:.3f} s ({ours / best:.2f}x)"))
+            if load >= 0.7 and "Oracle" in set(frame["method"]):
+                checks.append((f"SafeTail p99 < Oracle's at load {load:g}", ours < p99("Oracle", load),
+                               f"{ours:.3f} s vs {p99('Oracle', load):.3f} s"))
+    return checks
+
+
+def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
+    """sweep_latency.png (p50 and p99 against load, per method) and sweep_copies.png."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    methods = list(dict.fromkeys(frame["method"]))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharex=True)
+    for axis, column, title in ((axes[0], "p50_s", "median"), (axes[1], "p99_s", "p99")):
+        for method in methods:
+            rows = frame[frame["method"] == method]
+            axis.plot(rows["load"], rows[column], marker="o", label=method,
+                      linewidth=2.5 if method == SAFETAIL else 1.2)
+        axis.set_yscale("log")
+        axis.set_xlabel("offered load")
+        axis.set_ylabel(f"{title} latency (s)")
+        axis.set_title(f"{title} latency against load")
+        axis.grid(True, which="both", alpha=0.3)
+    axes[1].legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    written.append(out_dir / "sweep_latency.png")
+    fig.savefig(written[-1], dpi=120, metadata={"Software": None})
+    plt.close(fig)
+    fig, axis = plt.subplots(figsize=(5.5, 4.2))
+    for method in methods:
+        rows = frame[frame["method"] == method]
+        axis.plot(rows["load"], rows["mean_n_selected"], marker="o", label=method,
+                  linewidth=2.5 if method == SAFETAIL else 1.2)
+    axis.set_xlabel("offered load")
+    axis.set_ylabel("copies per request")
+    axis.set_title("copies per request against load")
+    axis.grid(True, alpha=0.3)
+    axis.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    written.append(out_dir / "sweep_copies.png")
+    fig.savefig(written[-1], dpi=120, metadata={"Software": None})
+    plt.close(fig)
+    return written
+
+
+def checks_markdown(frame: pd.DataFrame, loads: Sequence[float]) -> str:
+    """The goals of :func:`sweep_checks` as a Markdown table."""
+    lines = ["| goal | holds | measured |", "|---|---|---|"]
+    lines += [f"| {claim} | {'yes' if ok else 'no'} | {measured} |" for claim, ok, measured in sweep_checks(frame)]
+    return "\n".join(lines) + "\n"
+
+
+def markdown_table(frame: pd.DataFrame) -> str:
+    """A Markdown table, floats to three decimals."""
+    def cell(value: object) -> str:
+        return f"{value:.3f}" if isinstance(value, float | np.floating) else str(value)
+
+    lines = ["| " + " | ".join(frame.columns) + " |", "|" + "---|" * len(frame.columns)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(index=False)]
+    return "\n".join(lines)

@@ -1,0 +1,289 @@
+"""The contention world: the edge world's traces and topology, with many users at once.
+
+What changes from the paper's single-user world (``edge.world``), and what does not:
+
+* **Users.** U users send requests as Poisson streams (a rate per user, or an offered load that
+  sets it) or at the times of an arrivals CSV (``time_s,user``). Every request draws its own
+  size, Γ, signal conditions (Λ^u, Λ^d), per-server RTT and compute noise exactly as a step of
+  the single-user world does (``edge.world.build_world``, drawn in blocks of requests).
+* **Servers.** A copy holds one of its server's slots while it computes (``capacity``, default
+  Table I's load limit 4; the topology may set it per server); a full server refuses (the
+  paper) or queues the copy FIFO (option). The running copies and the background tenants share
+  the server's CPU equally (processor sharing); each progresses at T(1)/T(n) of its one-process
+  speed when n run, T(k) being the traces' median compute time at k processes (beyond the traced
+  k, in proportion to n), times the server's IPT over ``REFERENCE_SERVER_IPT``.
+* **Links.** A copy's transfer uses the measured bandwidth of its server's contention level, the
+  number of other users active there (ours and background) when the transfer starts, as in the
+  single-user world; the traces measured what an equal share of the WiFi gives.
+* **Background tenants.** The load trace's users, as in the single-user world, change every
+  ``background_period_s`` (one trace row, 60 s); they hold slots and CPU share but send nothing.
+
+Units: seconds, bytes, bits per second; rates in requests per second.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
+from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
+from yafs_safetail.edge.observation import Observation
+from yafs_safetail.edge.sampling import phase_seed_sequence
+from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, EdgeScenario
+from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
+from yafs_safetail.edge.usecases import UseCase, get_use_case
+from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, build_world
+
+#: Requests drawn per block (memory stays bounded however long the run).
+DEFAULT_BLOCK_REQUESTS = 20_000
+#: How often the background tenants change: one load-trace row (a minute).
+BACKGROUND_PERIOD_S = 60.0
+
+
+class ContentionError(ValueError):
+    """A contention-world setting or input that cannot make a run (one line naming it)."""
+
+
+@dataclass(frozen=True)
+class ContentionConfig:
+    """One contention-world run of one method (everything but the method).
+
+    Attributes:
+        use_case: 1, 2 or 3.
+        n_requests: requests simulated (ignored with ``arrivals_csv``: its rows are the requests).
+        seed: the run's seed.
+        phase: names the random streams (``"train"`` and ``"test"`` are independent worlds).
+        users: U.
+        load: offered utilisation of the servers' slots by the users' requests: arrival rate ×
+            mean single-copy service time ÷ total slots (see :meth:`ContentionWorld.rate_for_load`).
+        rate_per_user_hz: each user's Poisson rate; when given, it sets the rate and ``load`` is
+            not used.
+        arrivals_csv: a CSV of ``time_s,user`` rows (user in 0..U-1) instead of Poisson streams.
+        queue: FIFO waiting queue at a full server instead of refusal.
+        cancel: cancel the other copies when the first reply arrives.
+        background: the load trace's background tenants (False: the servers serve only the users).
+        world: the world's readings and calibrated parameters (``"calibrated"`` or ``"landed"``).
+        topology: topology JSON (per-server ``IPT`` and ``capacity`` are read here).
+        placement: placement JSON.
+        traces_dir: the traces folder (None: the repository's).
+        block_requests: requests drawn per block.
+    """
+
+    use_case: int = 1
+    n_requests: int = 10_000
+    seed: int = 0
+    phase: str = "test"
+    users: int = 1
+    load: float | None = 0.3
+    rate_per_user_hz: float | None = None
+    arrivals_csv: Path | None = None
+    queue: bool = False
+    cancel: bool = True
+    background: bool = True
+    world: str = "calibrated"
+    topology: Path = DEFAULT_TOPOLOGY
+    placement: Path = DEFAULT_PLACEMENT
+    traces_dir: Path | None = None
+    block_requests: int = DEFAULT_BLOCK_REQUESTS
+
+
+def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, max_jobs: int) -> tuple[float, ...]:
+    """Per-job speed for 0..max_jobs running jobs: T(1)/T(n) × the server's speed factor.
+
+    T(n) beyond the traced k grows in proportion to n (the server is then simply divided).
+    """
+    traced = np.asarray(median_compute_by_k_s, dtype=float)
+    k_max = traced.shape[0]
+    speeds = [speed_factor]  # n = 0 is never used for progress; any positive value will do
+    for n in range(1, max_jobs + 1):
+        time_n = traced[n - 1] if n <= k_max else traced[-1] * n / k_max
+        speeds.append(speed_factor * float(traced[0] / time_n))
+    return tuple(speeds)
+
+
+def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:
+    """``time_s,user`` rows, checked (one-line errors), sorted by time (stable)."""
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except OSError as exc:
+        raise ContentionError(f"{path}: file: cannot read arrivals ({exc.strerror})") from None
+    if not rows or [c.strip() for c in rows[0]] != ["time_s", "user"]:
+        raise ContentionError(f"{path}: header: expected the columns time_s,user")
+    times, who = [], []
+    for number, row in enumerate(rows[1:], start=2):
+        if len(row) != 2:
+            raise ContentionError(f"{path}: line {number}: expected 2 values, got {len(row)}")
+        try:
+            time_s, user = float(row[0]), int(row[1])
+        except ValueError:
+            raise ContentionError(f"{path}: line {number}: not a number and an integer: {row!r}") from None
+        if not math.isfinite(time_s) or time_s < 0:
+            raise ContentionError(f"{path}: line {number}: time_s must be a finite non-negative number")
+        if not 0 <= user < users:
+            raise ContentionError(f"{path}: line {number}: user {user} is not in 0..{users - 1} (--users {users})")
+        times.append(time_s)
+        who.append(user)
+    if not times:
+        raise ContentionError(f"{path}: rows: no arrivals")
+    order = np.argsort(np.asarray(times), kind="stable")
+    return np.asarray(times)[order], np.asarray(who, dtype=np.int64)[order]
+
+
+class ContentionWorld:
+    """The inputs of one contention run, drawn from ``(seed, phase)``; shared by every method
+    run on it (common random numbers: the same arrivals and per-request draws)."""
+
+    def __init__(self, config: ContentionConfig, inputs: TraceInputs | None = None,
+                 scenario: EdgeScenario | None = None) -> None:
+        _check(config)
+        self.config = config
+        self.use_case: UseCase = get_use_case(config.use_case)
+        if inputs is None:
+            inputs = (load_inputs(self.use_case) if config.traces_dir is None
+                      else load_inputs(self.use_case, config.traces_dir))
+        self.inputs = inputs
+        self.scenario = scenario or load_scenario_for(inputs, Path(config.topology), Path(config.placement))
+        self.settings: WorldSettings = world_settings(config.world)
+        self.max_load = DEFAULT_MAX_LOAD
+        self.capacity = self.scenario.server_capacity(self.max_load)
+        self.speed_factor = tuple(ipt / REFERENCE_SERVER_IPT for ipt in self.scenario.server_ipt)
+        self.server_max_load = np.asarray(self.capacity, dtype=np.int64)
+        self.server_max_load.setflags(write=False)
+        self.emit_s, self.user = self._arrivals()
+        self._current: tuple[int, EdgeWorld] | None = None
+
+    @property
+    def n_servers(self) -> int:
+        return self.scenario.n_servers
+
+    @property
+    def n_requests(self) -> int:
+        return int(self.emit_s.shape[0])
+
+    @cached_property
+    def mean_work_s(self) -> float:
+        """Mean one-process compute time of a request on a reference server (the traces' model
+        over every trace row, without noise)."""
+        rows = self.inputs.request_gamma.shape[0]
+        return float(np.mean(self.inputs.predict_compute_s(self.inputs.request_gamma, np.ones(rows))))
+
+    @property
+    def mean_service_s(self) -> float:
+        """The mean single-copy service time: how long a copy holds its slot on a full
+        reference server (T(c)/T(1) × the mean one-process time, c = Table I's load limit), so
+        load 1 is the rate at which single dispatch would keep every slot busy."""
+        traced = self.inputs.median_compute_by_k_s
+        return self.mean_work_s * float(traced[self.max_load - 1] / traced[0])
+
+    @property
+    def total_slots(self) -> int:
+        return int(sum(self.capacity))
+
+    def rate_for_load(self, load: float) -> float:
+        """Total arrival rate (1/s) for an offered utilisation ``load``."""
+        return load * self.total_slots / self.mean_service_s
+
+    def offered_load(self) -> float:
+        """The offered utilisation of this run's arrivals."""
+        duration_s = float(self.emit_s[-1] - self.emit_s[0]) if self.n_requests > 1 else math.inf
+        rate = (self.n_requests - 1) / duration_s if duration_s > 0 else math.inf
+        return rate * self.mean_service_s / self.total_slots
+
+    def _arrivals(self) -> tuple[np.ndarray, np.ndarray]:
+        config = self.config
+        if config.arrivals_csv is not None:
+            return read_arrivals(Path(config.arrivals_csv), config.users)
+        total_rate = (config.users * float(config.rate_per_user_hz) if config.rate_per_user_hz is not None
+                      else self.rate_for_load(float(config.load or 0.0)))
+        rng = np.random.default_rng(phase_seed_sequence(config.seed, f"{config.phase}:arrivals"))
+        # The superposition of U Poisson streams of equal rate is one Poisson stream whose
+        # arrivals belong to a user drawn uniformly.
+        emit_s = np.cumsum(rng.exponential(1.0 / total_rate, config.n_requests))
+        return emit_s, rng.integers(config.users, size=config.n_requests)
+
+    def engine_settings(self, queue: bool | None = None, cancel: bool | None = None) -> EngineSettings:
+        config = self.config
+        background = self._background_rows() if config.background else ()
+        most_background = max((max(row) for row in background), default=0)
+        return EngineSettings(
+            servers=tuple(
+                ServerSpec(slots=slots, speed=compute_speed_table(
+                    self.inputs.median_compute_by_k_s, factor, slots + most_background + 1))
+                for slots, factor in zip(self.capacity, self.speed_factor, strict=True)),
+            contention_levels=self.inputs.n_contention_levels,
+            queue=config.queue if queue is None else queue,
+            cancel=config.cancel if cancel is None else cancel,
+            fallback_latency_s=self.fallback_latency_s,
+            background_period_s=BACKGROUND_PERIOD_S,
+            background=background,
+        )
+
+    def _background_rows(self) -> tuple[tuple[int, ...], ...]:
+        periods = int(self.emit_s[-1] // BACKGROUND_PERIOD_S) + 2 if self.n_requests else 1
+        world = build_world(self.scenario, self.use_case, self.inputs, periods, seed=self.config.seed,
+                            phase=f"{self.config.phase}:background", settings=self.settings)
+        return tuple(tuple(row) for row in world.background_users.tolist())
+
+    @cached_property
+    def fallback_latency_s(self) -> float:
+        return self.block_world(0).fallback_latency_s
+
+    def block_world(self, index: int) -> EdgeWorld:
+        """The edge world whose steps are requests ``index * block .. (index + 1) * block - 1``
+        (built once; the latest is kept)."""
+        if self._current is not None and self._current[0] == index:
+            return self._current[1]
+        size = self.config.block_requests
+        n_steps = max(1, min(size, self.n_requests - index * size))
+        world = build_world(self.scenario, self.use_case, self.inputs, n_steps, seed=self.config.seed,
+                            phase=f"{self.config.phase}:{index}", settings=self.settings)
+        self._current = (index, world)
+        return world
+
+    def block(self, index: int) -> RequestBlock:
+        world = self.block_world(index)
+        n = world.n_steps
+        return RequestBlock(
+            first=index * self.config.block_requests,
+            input_transfer_s=world.input_transfer_by_level_s.reshape(n, -1).tolist(),
+            output_transfer_s=world.output_transfer_by_level_s.reshape(n, -1).tolist(),
+            propagation_s=world.rtt_s.tolist(),
+            work_s=world.compute_by_processes_s[:, :, 0].tolist(),
+        )
+
+    def observation(self, request: int, active_users: list[int]) -> Observation:
+        """ω^t of request ``request`` (its block must be the current one)."""
+        size = self.config.block_requests
+        world = self.block_world(request // size)
+        return world.observation(request % size, np.asarray(active_users, dtype=np.int64),
+                                 label=request, server_max_load=self.server_max_load)
+
+    def target_s(self, request: int) -> float:
+        size = self.config.block_requests
+        return float(self.block_world(request // size).target_s[request % size])
+
+
+def _check(config: ContentionConfig) -> None:
+    def positive_int(name: str, value: object) -> None:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ContentionError(f"{name}: expected a positive integer, got {value!r}")
+
+    positive_int("--users", config.users)
+    positive_int("--requests", config.n_requests)
+    positive_int("block_requests", config.block_requests)
+    if config.arrivals_csv is None:
+        if config.load is None and config.rate_per_user_hz is None:
+            raise ContentionError("--load / --rate-per-user: give one of them")
+        by_rate = config.rate_per_user_hz is not None
+        value = config.rate_per_user_hz if by_rate else config.load
+        if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
+            name = "--rate-per-user" if by_rate else "--load"
+            raise ContentionError(f"{name}: expected a positive number, got {value!r}")
