@@ -71,6 +71,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
     parser.add_argument("--background", action="store_true",
                         help="add the load trace's background tenants on top of the users' load")
+    parser.add_argument("--user-conditions", default="topology",
+                        help="each user's distance condition per server: topology (default), generated "
+                             "(the topology's ±1 per user and server) or a JSON file (docs/contention.md)")
     parser.add_argument("--methods", default=",".join(DEFAULT_SWEEP_METHODS),
                         help="fixed methods, comma-separated (default: all)")
     parser.add_argument("--no-safetail", action="store_true", help="fixed methods only")
@@ -86,7 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         base=ContentionConfig(use_case=args.uc, seed=args.seed, users=args.users,
                               queue=args.servers == "queue", cancel=not args.no_cancel,
                               background=args.background, topology=args.topology,
-                              placement=args.placement),
+                              placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale)
     if config.test_requests < 100:
@@ -110,7 +113,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "cancel": not args.no_cancel, "background": args.background, "methods": list(methods),
             "safetail": not args.no_safetail, "train_requests": config.train_requests,
             "test_requests": config.test_requests, "topology": str(args.topology),
-            "placement": str(args.placement)}, indent=1) + "\n")
+            "placement": str(args.placement), "user_conditions": str(args.user_conditions)},
+            indent=1) + "\n")
         output.publish()
     print(checks_markdown(frame, config.loads))
     print(f"written: {args.out / 'sweep.csv'}")

@@ -182,3 +182,31 @@ def test_benchmarks_small_budget(script, args, last):
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1].startswith(last)
+
+
+def test_users_have_their_own_conditions(tmp_path):
+    base = ContentionConfig(n_requests=400, users=6, load=0.2, block_requests=200, seed=2)
+    same = ContentionWorld(base)
+    generated = ContentionWorld(replace(base, user_conditions="generated"))
+    assert generated.conditions.shape == (6, 5) and generated.conditions.min() >= 1
+    assert np.all(np.abs(generated.conditions - same.conditions) <= 1)
+    assert not np.array_equal(generated.conditions, same.conditions)
+    # A user at the topology's conditions sees exactly the topology's RTTs; the others differ
+    # where their conditions do.
+    for index in (0, 1):
+        ours, theirs = generated.block(index), same.block(index)
+        users = generated.user[index * 200:(index + 1) * 200]
+        for r, user in enumerate(users):
+            equal = generated.conditions[user] == same.conditions[user]
+            rtt, ref = np.asarray(ours.propagation_s[r]), np.asarray(theirs.propagation_s[r])
+            assert np.array_equal(rtt[equal], ref[equal])
+    user = int(generated.user[5])
+    assert generated.observation(5, [0] * 5).server_median_propagation_s.tolist() == pytest.approx(
+        generated.user_median_propagation_s[user].tolist())
+    listed = tmp_path / "users.json"
+    listed.write_text(json.dumps({"users": [{"conditions": [5, 5, 5, 5, 5]}] * 6}))
+    far = ContentionWorld(replace(base, user_conditions=listed))
+    assert far.target_s(0) > same.target_s(0)
+    listed.write_text(json.dumps({"users": [{"conditions": [9, 1, 1, 1, 1]}] * 6}))
+    with pytest.raises(ContentionError, match=r"users.json: users\[0\]\.conditions: expected 5 conditions"):
+        ContentionWorld(replace(base, user_conditions=listed))

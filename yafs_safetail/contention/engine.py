@@ -162,6 +162,13 @@ def run_engine(
                 waiting[i] -= 1
                 start(i, copy)
 
+    def occupancy_changed(i: int) -> None:
+        # Occupancy changed (server advanced to now): waiting copies may start, and the next
+        # completion moves.
+        if queue_mode:
+            fill_from_queue(i)
+        reschedule(i)
+
     def send_cancel(copy: list) -> None:
         nonlocal seq
         push(events, (now + copy[_RTT], seq, _CANCEL, copy, None))
@@ -266,9 +273,7 @@ def run_engine(
                 copy[_END] = now
                 push(events, (now + 2.0 * out_s + copy[_RTT], seq, _REPLY, copy, None))
                 seq += 1
-            if queue_mode:
-                fill_from_queue(i)
-            reschedule(i)
+            occupancy_changed(i)
         elif kind == _AT_SERVER:
             copy = a
             if copy[_STATE] == _CANCELLED:
@@ -321,9 +326,7 @@ def run_engine(
                 own[i] -= 1
                 busy_s += now - copy[_START]
                 cancelled_copies += 1
-                if queue_mode:
-                    fill_from_queue(i)
-                reschedule(i)
+                occupancy_changed(i)
         elif kind == _HEDGE:
             req = a
             if not req[_R_DONE]:
@@ -334,9 +337,7 @@ def run_engine(
                 if row[i] != background[i]:
                     advance(i)
                     background[i] = row[i]
-                    if queue_mode:
-                        fill_from_queue(i)
-                    reschedule(i)
+                    occupancy_changed(i)
             # Background changes only matter while requests remain.
             if next_request < n_requests or events:
                 push(events, (now + period_s, seq, _BACKGROUND, a + 1, None))

@@ -5,7 +5,10 @@ What changes from the paper's single-user world (``edge.world``), and what does 
 * **Users.** U users send requests as Poisson streams (a rate per user, or an offered load that
   sets it) or at the times of an arrivals CSV (``time_s,user``). Every request draws its own
   size, Γ, signal conditions (Λ^u, Λ^d), per-server RTT and compute noise exactly as a step of
-  the single-user world does (``edge.world.build_world``, drawn in blocks of requests).
+  the single-user world does (``edge.world.build_world``, drawn in blocks of requests). Each
+  user has its own distance condition to each server (``user_conditions``): the topology's
+  (every user where the topology's user is), generated around it, or read from a JSON file;
+  its RTTs, ρ^μ_i and τ follow from them.
 * **Servers.** A copy holds one of its server's slots while it computes (``capacity``, default
   Table I's load limit 4; the topology may set it per server); a full server refuses (the
   paper) or queues the copy FIFO (option). The running copies and the background tenants share
@@ -24,6 +27,8 @@ Units: seconds, bytes, bits per second; rates in requests per second.
 from __future__ import annotations
 
 import csv
+import dataclasses
+import json
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -34,8 +39,9 @@ import numpy as np
 from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
+from yafs_safetail.edge.latency import target_latency_s
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.edge.sampling import phase_seed_sequence
+from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_sequence, propagation
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.usecases import UseCase, get_use_case
@@ -74,6 +80,10 @@ class ContentionConfig:
         placement: placement JSON.
         traces_dir: the traces folder (None: the repository's).
         block_requests: requests drawn per block.
+        user_conditions: each user's distance condition (1..5) per server: ``"topology"`` (the
+            topology's link conditions for every user), ``"generated"`` (the topology's ±1 per
+            user and server, drawn once from the seed, the same in every phase) or a JSON file
+            ``{"users": [{"conditions": [c_0, ..., c_{n-1}]}, ...]}`` with one entry per user.
     """
 
     use_case: int = 1
@@ -92,6 +102,7 @@ class ContentionConfig:
     placement: Path = DEFAULT_PLACEMENT
     traces_dir: Path | None = None
     block_requests: int = DEFAULT_BLOCK_REQUESTS
+    user_conditions: str | Path = "topology"
 
 
 def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, max_jobs: int) -> tuple[float, ...]:
@@ -158,7 +169,10 @@ class ContentionWorld:
         self.server_max_load = np.asarray(self.capacity, dtype=np.int64)
         self.server_max_load.setflags(write=False)
         self.emit_s, self.user = self._arrivals()
+        self.conditions = user_conditions(config, self.scenario, tuple(sorted(inputs.rtt_pools_s)))
+        self._per_user = bool(np.any(self.conditions != np.asarray(self.scenario.server_conditions)))
         self._current: tuple[int, EdgeWorld] | None = None
+        self._block_rtt_s: np.ndarray | None = None
 
     @property
     def n_servers(self) -> int:
@@ -243,10 +257,38 @@ class ContentionWorld:
             return self._current[1]
         size = self.config.block_requests
         n_steps = max(1, min(size, self.n_requests - index * size))
+        phase = f"{self.config.phase}:{index}"
         world = build_world(self.scenario, self.use_case, self.inputs, n_steps, seed=self.config.seed,
-                            phase=f"{self.config.phase}:{index}", settings=self.settings)
+                            phase=phase, settings=self.settings)
         self._current = (index, world)
+        self._block_rtt_s = self._user_rtt_s(world, phase, index * size) if self._per_user else world.rtt_s
         return world
+
+    def _user_rtt_s(self, world: EdgeWorld, phase: str, first: int) -> np.ndarray:
+        """ρ per (request, server) from each request's user's conditions, with the same RTT
+        quantiles the block's world drew (so a user at the topology's conditions sees the same
+        RTTs as under ``"topology"``)."""
+        servers_seq = phase_seed_sequence(self.config.seed, phase).spawn(4)[3]
+        quantiles = draw_servers(servers_seq, self.n_servers, world.n_steps).rtt_quantiles
+        extra_s = link_scales(self.scenario).server_extra_propagation_s
+        by_condition = {c: propagation(self.inputs, (c,) * self.n_servers, quantiles, extra_s,
+                                       self.settings.propagation_rtt_fraction)[0]
+                        for c in np.unique(self.conditions).tolist()}
+        users = self.user[first:first + world.n_steps]
+        rtt_s = np.empty_like(world.rtt_s)
+        for c, table in by_condition.items():
+            mask = self.conditions[users] == c
+            rtt_s[mask] = table[mask]
+        return rtt_s
+
+    @cached_property
+    def user_median_propagation_s(self) -> np.ndarray:
+        """ρ^μ_i per (user, server) from the users' conditions."""
+        extra_s = link_scales(self.scenario).server_extra_propagation_s
+        fraction = self.settings.propagation_rtt_fraction
+        medians = {c: float(np.median(self.inputs.rtt_pools_s[c] * fraction))
+                   for c in np.unique(self.conditions).tolist()}
+        return np.vectorize(medians.__getitem__, otypes=[float])(self.conditions) + extra_s[None, :]
 
     def block(self, index: int) -> RequestBlock:
         world = self.block_world(index)
@@ -255,7 +297,7 @@ class ContentionWorld:
             first=index * self.config.block_requests,
             input_transfer_s=world.input_transfer_by_level_s.reshape(n, -1).tolist(),
             output_transfer_s=world.output_transfer_by_level_s.reshape(n, -1).tolist(),
-            propagation_s=world.rtt_s.tolist(),
+            propagation_s=(world.rtt_s if self._block_rtt_s is None else self._block_rtt_s).tolist(),
             work_s=world.compute_by_processes_s[:, :, 0].tolist(),
         )
 
@@ -263,12 +305,55 @@ class ContentionWorld:
         """ω^t of request ``request`` (its block must be the current one)."""
         size = self.config.block_requests
         world = self.block_world(request // size)
-        return world.observation(request % size, np.asarray(active_users, dtype=np.int64),
-                                 label=request, server_max_load=self.server_max_load)
+        observation = world.observation(request % size, np.asarray(active_users, dtype=np.int64),
+                                        label=request, server_max_load=self.server_max_load)
+        if self._per_user:
+            observation = dataclasses.replace(
+                observation, server_median_propagation_s=self.user_median_propagation_s[self.user[request]])
+        return observation
 
     def target_s(self, request: int) -> float:
+        """τ (Eq. 4) of request ``request``, from its user's ρ^μ_i."""
         size = self.config.block_requests
-        return float(self.block_world(request // size).target_s[request % size])
+        world = self.block_world(request // size)
+        step = request % size
+        if not self._per_user:
+            return float(world.target_s[step])
+        return float(target_latency_s(
+            world.input_bytes[step], world.est_output_bytes[step], world.user_uplink_bps[step],
+            world.user_downlink_bps[step], self.user_median_propagation_s[self.user[request]],
+            world.median_compute_s))
+
+
+def user_conditions(config: ContentionConfig, scenario: EdgeScenario, known: tuple[int, ...]) -> np.ndarray:
+    """Each user's distance condition per server, shape (U, n) (see ``ContentionConfig``)."""
+    topology = np.asarray(scenario.server_conditions, dtype=np.int64)
+    choice = config.user_conditions
+    if choice == "topology":
+        return np.tile(topology, (config.users, 1))
+    if choice == "generated":
+        rng = np.random.default_rng(phase_seed_sequence(config.seed, "users"))
+        shifted = topology[None, :] + rng.integers(-1, 2, size=(config.users, topology.size))
+        return np.clip(shifted, min(known), max(known))
+    path = Path(choice)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ContentionError(f"{path}: file: cannot read user conditions ({exc.strerror})") from None
+    except ValueError as exc:
+        raise ContentionError(f"{path}: file: invalid JSON ({exc})") from None
+    users = data.get("users") if isinstance(data, dict) else None
+    if not isinstance(users, list) or len(users) != config.users:
+        raise ContentionError(f"{path}: users: expected a list of {config.users} users (--users {config.users})")
+    rows = []
+    for index, user in enumerate(users):
+        conditions = user.get("conditions") if isinstance(user, dict) else None
+        if (not isinstance(conditions, list) or len(conditions) != topology.size
+                or not all(isinstance(c, int) and not isinstance(c, bool) and c in known for c in conditions)):
+            raise ContentionError(f"{path}: users[{index}].conditions: expected {topology.size} conditions "
+                                  f"from {list(known)}, got {conditions!r}")
+        rows.append(conditions)
+    return np.asarray(rows, dtype=np.int64)
 
 
 def _check(config: ContentionConfig) -> None:
