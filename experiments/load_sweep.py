@@ -66,6 +66,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="scales SafeTail's training requests and the 20,000 test requests per load")
     parser.add_argument("--preset", choices=PRESET_NAMES, default="paper", help="SafeTail's preset (default paper)")
+    parser.add_argument("--reward", choices=("paper", "no-free-miss"), default="paper",
+                        help="SafeTail's reward: Eq. 5 (default) or Eq. 5 without case 3's free miss "
+                             "with all servers (docs/contention.md)")
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
@@ -91,7 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                               background=args.background, topology=args.topology,
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
-        steps_scale=args.steps_scale)
+        steps_scale=args.steps_scale, reward=args.reward)
     if config.test_requests < 100:
         raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
@@ -109,7 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         write_text_atomic(staging / "run.json", json.dumps({
             "package_version": __version__, "command": command, "kind": "load_sweep",
             "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
-            "steps_scale": args.steps_scale, "preset": args.preset, "servers": args.servers,
+            "steps_scale": args.steps_scale, "preset": args.preset, "reward": args.reward, "servers": args.servers,
             "cancel": not args.no_cancel, "background": args.background, "methods": list(methods),
             "safetail": not args.no_safetail, "train_requests": config.train_requests,
             "test_requests": config.test_requests, "topology": str(args.topology),

@@ -210,3 +210,25 @@ def test_users_have_their_own_conditions(tmp_path):
     listed.write_text(json.dumps({"users": [{"conditions": [9, 1, 1, 1, 1]}] * 6}))
     with pytest.raises(ContentionError, match=r"users.json: users\[0\]\.conditions: expected 5 conditions"):
         ContentionWorld(replace(base, user_conditions=listed))
+
+
+def test_the_contention_reward_only_changes_a_miss_with_all_servers():
+    from yafs_safetail.methods.safetail.reward import reward, reward_no_free_miss
+
+    delta = 0.003
+    assert reward(2.0, 1.0, 5, 5, delta) == 0.0
+    assert reward_no_free_miss(2.0, 1.0, 5, 5, delta) == pytest.approx(-delta * np.e)
+    assert reward_no_free_miss(2.0, 1.0, 4, 5, delta) == pytest.approx(reward(2.0, 1.0, 4, 5, delta))
+    for case in ((0.5, 1.0, 1), (0.5, 1.0, 3), (1.0, 1.0, 5), (3.0, 1.0, 2)):
+        assert reward_no_free_miss(*case, 5, delta) == reward(*case, 5, delta)
+
+
+def test_safetail_rejects_an_unknown_reward():
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+
+    class Learner:
+        n_servers = 5
+
+    with pytest.raises(PolicyError, match="SafeTail: unknown reward 'best'"):
+        SafeTailPolicy(5, np.random.default_rng(0), learner=Learner(), scales=None,  # type: ignore[arg-type]
+                       training=True, reward_name="best")

@@ -10,7 +10,7 @@ import numpy as np
 
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.policy import Policy, PolicyError
-from yafs_safetail.methods.safetail.reward import reward
+from yafs_safetail.methods.safetail.reward import REWARDS
 from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, subset_of
 from yafs_safetail.record import RequestRecord
 
@@ -30,6 +30,8 @@ class SafeTailPolicy(Policy):
         learner: the learner.
         scales: the state normalisation (``StateScales.for_use_case``).
         training: explore and learn (the training phase) or act greedily and frozen (testing).
+        reward_name: the reward of :data:`~yafs_safetail.methods.safetail.reward.REWARDS`
+            (``"paper"``, Eq. 5, everywhere but the contention world's variant).
 
     Attributes:
         decision_time_s: wall time spent encoding states and choosing actions.
@@ -37,7 +39,7 @@ class SafeTailPolicy(Policy):
     """
 
     def __init__(self, n_servers: int, rng: np.random.Generator, *, learner: Any,
-                 scales: StateScales, training: bool) -> None:
+                 scales: StateScales, training: bool, reward_name: str = "paper") -> None:
         if learner.n_servers != n_servers:
             raise PolicyError(
                 f"SafeTail: the policy is for {learner.n_servers} servers, the topology has {n_servers}"
@@ -47,6 +49,9 @@ class SafeTailPolicy(Policy):
         self.learner = learner
         self.scales = scales
         self.training = training
+        if reward_name not in REWARDS:
+            raise PolicyError(f"SafeTail: unknown reward {reward_name!r}; valid: {', '.join(REWARDS)}")
+        self._reward = REWARDS[reward_name]
         self.decision_time_s = 0.0
         self.training_time_s = 0.0
         self._decisions: dict[int, tuple[np.ndarray, int, float]] = {}
@@ -64,7 +69,7 @@ class SafeTailPolicy(Policy):
 
     def feedback(self, outcome: RequestRecord) -> RequestRecord:
         state, action, epsilon = self._decisions.pop(outcome.step)
-        value = reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
+        value = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
                        self.learner.config.delta)
         if self.training:
             started = time.perf_counter()

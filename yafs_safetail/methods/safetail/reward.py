@@ -57,3 +57,19 @@ def reward(
     if n_selected == n_servers:
         return 0.0
     return -delta * math.exp(n_servers - n_selected)
+
+
+def reward_no_free_miss(
+    latency_s: float, target_s: float, n_selected: int, n_servers: int, delta: float
+) -> float:
+    """Eq. 5 with case 3 made a penalty: a miss with all n servers costs what a miss with n - 1
+    costs (-δ·e). Not the paper's: the contention world's variant (docs/contention.md), where
+    copies delay other requests and "all servers" must not be a free answer to a miss."""
+    value = reward(latency_s, target_s, n_selected, n_servers, delta)
+    if latency_s > target_s and n_selected == n_servers and n_servers > 1:
+        return -delta * math.e
+    return value
+
+
+#: The rewards a SafeTail policy can be trained with, by name (``"paper"`` = Eq. 5).
+REWARDS = {"paper": reward, "no-free-miss": reward_no_free_miss}
