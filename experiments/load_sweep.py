@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from yafs_safetail import __version__
 from yafs_safetail.cli import (
@@ -33,16 +33,22 @@ from yafs_safetail.contention.sweep import (
     DEFAULT_SWEEP_METHODS,
     SweepConfig,
     checks_markdown,
+    load_point_specs,
     markdown_table,
     plot_sweep,
-    run_sweep,
 )
 from yafs_safetail.contention.world import ContentionConfig, ContentionError
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.methods.registry import make_baseline
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.results.files import write_text_atomic
-from yafs_safetail.runs.output import StagedOutput
+from yafs_safetail.runs.campaign import (
+    STATE_FILE,
+    add_engine_options,
+    engine_free_command,
+    run_campaign,
+)
+from yafs_safetail.runs.output import SWEEP_FILE
 
 
 def load_list(text: str) -> tuple[float, ...]:
@@ -83,7 +89,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--topology", type=Path, default=DEFAULT_TOPOLOGY, help="topology JSON")
     parser.add_argument("--placement", type=Path, default=DEFAULT_PLACEMENT, help="placement JSON")
     parser.add_argument("--out", type=Path, required=True, help="new output folder")
-    parser.add_argument("--overwrite", action="store_true", help="replace an earlier sweep folder there")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace load folders there that hold another configuration's results")
+    add_engine_options(parser)
     args = parser.parse_args(argv)
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     for name in methods:  # unknown names fail before anything runs
@@ -98,29 +106,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     if config.test_requests < 100:
         raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
-    command = shlex.join(["python", "experiments/load_sweep.py", *(sys.argv[1:] if argv is None else argv)])
-    output = StagedOutput(args.out, args.overwrite)
-    with output as staging:
-        frame = run_sweep(config, log=lambda line: print(line, file=sys.stderr, flush=True))
-        frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
-        table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
-        write_text_atomic(staging / "SWEEP.md",
-                          f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {args.seed})\n\n"
-                          f"`{command}`\n\n" + markdown_table(table) + "\n\n## Goals\n\n"
-                          + checks_markdown(frame, config.loads))
-        plot_sweep(frame, staging)
-        write_text_atomic(staging / "run.json", json.dumps({
-            "package_version": __version__, "command": command, "kind": "load_sweep",
-            "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
-            "steps_scale": args.steps_scale, "preset": args.preset, "reward": args.reward, "servers": args.servers,
-            "cancel": not args.no_cancel, "background": args.background, "methods": list(methods),
-            "safetail": not args.no_safetail, "train_requests": config.train_requests,
-            "test_requests": config.test_requests, "topology": str(args.topology),
-            "placement": str(args.placement), "user_conditions": str(args.user_conditions)},
-            indent=1) + "\n")
-        output.publish()
+    command = engine_free_command("experiments/load_sweep.py", sys.argv[1:] if argv is None else argv)
+    out = Path(args.out)
+    if out.exists() and any(out.iterdir()) and not (out / STATE_FILE).is_file():
+        raise ContentionError(f"--out {out}: exists and is not a load sweep's folder; give a new folder")
+    # Each load is one campaign run (cached by its configuration's hash, resumable, on any
+    # engine); the sweep's table is assembled from their folders.
+    specs = load_point_specs(config)
+    result = run_campaign(specs, out, engine=args.engine, workers=args.workers,
+                          ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    if result.failed:
+        return 1
+    frame = pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in specs], ignore_index=True)
+    frame.to_csv(out / SWEEP_FILE, index=False, float_format="%.6g")
+    table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
+    write_text_atomic(out / "SWEEP.md",
+                      f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {args.seed})\n\n"
+                      f"`{command}`\n\n" + markdown_table(table) + "\n\n## Goals\n\n"
+                      + checks_markdown(frame, config.loads))
+    plot_sweep(frame, out)
+    write_text_atomic(out / "run.json", json.dumps({
+        "package_version": __version__, "command": command, "kind": "load_sweep",
+        "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
+        "steps_scale": args.steps_scale, "preset": args.preset, "reward": args.reward,
+        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
+        "methods": list(methods), "safetail": not args.no_safetail, "train_requests": config.train_requests,
+        "test_requests": config.test_requests, "topology": str(args.topology),
+        "placement": str(args.placement), "user_conditions": str(args.user_conditions),
+        "load_runs": {spec.name: spec.run_id for spec in specs}}, indent=1) + "\n")
     print(checks_markdown(frame, config.loads))
-    print(f"written: {args.out / 'sweep.csv'}")
+    print(f"written: {out / SWEEP_FILE}")
     return 0
 
 

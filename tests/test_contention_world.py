@@ -153,14 +153,27 @@ def test_load_sweep_small_budget(tmp_path):
         assert column in frame.columns
     assert sorted(set(frame["method"])) == ["MinLoad-1", "Oracle", "SafeTail", "Tied"]
     assert (frame["n_requests"] == 380).all() and set(frame["load"]) == {0.2, 0.8}
-    for name in ("SWEEP.md", "sweep_latency.png", "sweep_copies.png", "run.json"):
-        assert (out / name).is_file()
-    # Same seed, same file; an existing sweep is kept unless --overwrite.
+    for name in ("SWEEP.md", "sweep_latency.png", "sweep_copies.png", "run.json", "load-0.2/sweep.csv",
+                 "load-0.8/run.json", "campaign.json"):
+        assert (out / name).is_file(), name
+    first = (out / "sweep.csv").read_bytes()
+    # Each load is a campaign run: rerunning resumes and recomputes nothing.
     again = subprocess.run(command, capture_output=True, text=True, timeout=600)
-    assert again.returncode == 2 and "--overwrite" in again.stderr and "Traceback" not in again.stderr
+    assert again.returncode == 0, again.stderr
+    assert "2 runs: 0 computed now, 2 done earlier" in again.stderr
+    assert (out / "sweep.csv").read_bytes() == first
+    # Same seed, same bytes, whatever the number of workers.
     second = tmp_path / "sweep2"
-    subprocess.run([*command[:-1], str(second)], check=True, capture_output=True, timeout=600)
-    assert (second / "sweep.csv").read_bytes() == (out / "sweep.csv").read_bytes()
+    subprocess.run([*command[:-1], str(second), "--workers", "2"], check=True, capture_output=True, timeout=600)
+    assert (second / "sweep.csv").read_bytes() == first
+    assert (second / "load-0.8" / "sweep.csv").read_bytes() == (out / "load-0.8" / "sweep.csv").read_bytes()
+    # A folder that is not a sweep's is refused and left as it was.
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep")
+    refused = subprocess.run([*command[:-1], str(other)], capture_output=True, text=True, timeout=600)
+    assert refused.returncode == 2 and "is not a load sweep's folder" in refused.stderr
+    assert [p.name for p in other.iterdir()] == ["notes.txt"]
 
 
 def test_load_sweep_bad_input_is_one_line(tmp_path):

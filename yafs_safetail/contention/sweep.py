@@ -9,8 +9,10 @@ runs on the test world only. All methods of a load see the same arrivals and per
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,9 @@ from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline
 from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
+from yafs_safetail.results.files import write_text_atomic
+from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
+from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import method_rng
 
 #: Every fixed method of the sweep (SafeTail is added unless left out).
@@ -116,6 +121,73 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
             log(f"load {load:g}: {policy.name:<10} p50 {row['p50_s']:.3f} s  p99 {row['p99_s']:.3f} s  "
                 f"copies {row['mean_n_selected']:.2f}  fallback {row['fallback_rate']:.3f}  ({run.wall_s:.1f} s)")
     return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
+
+
+LOAD_POINT = "load_point"
+
+
+def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
+    """One load of the sweep as a campaign run's settings (JSON values, paths absolute)."""
+    base = config.base
+    conditions = base.user_conditions
+    if conditions not in ("topology", "generated"):
+        conditions = str(Path(conditions).resolve())
+    return {
+        "use_case": base.use_case, "users": base.users, "load": load, "seed": base.seed,
+        "queue": base.queue, "cancel": base.cancel, "background": base.background, "world": base.world,
+        "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
+        "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
+        "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
+    }
+
+
+def point_run_id(settings: Mapping[str, Any]) -> str:
+    """The short hash of everything a load point's rows depend on (its settings, the input
+    files' contents, the code version)."""
+    identity = dict(settings, kind=LOAD_POINT, code_version=code_version())
+    for key in ("topology", "placement"):
+        identity[key] = file_identity(Path(settings[key]))
+    if settings["user_conditions"] not in ("topology", "generated"):
+        identity["user_conditions"] = file_identity(Path(settings["user_conditions"]))
+    canonical = json.dumps(identity, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
+
+
+def load_point_specs(config: SweepConfig) -> list[RunSpec]:
+    """One campaign run per load, in load order (folder ``load-<load>``)."""
+    specs = []
+    for load in config.loads:
+        settings = point_settings(config, load)
+        specs.append(RunSpec(name=f"load-{load:g}", run_id=point_run_id(settings), settings=settings,
+                             kind=LOAD_POINT))
+    return specs
+
+
+def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
+    base = ContentionConfig(
+        use_case=settings["use_case"], users=settings["users"], seed=settings["seed"],
+        queue=settings["queue"], cancel=settings["cancel"], background=settings["background"],
+        world=settings["world"], topology=Path(settings["topology"]), placement=Path(settings["placement"]),
+        user_conditions=settings["user_conditions"])
+    return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
+                       safetail=settings["safetail"], preset=settings["preset"],
+                       steps_scale=settings["steps_scale"], reward=settings["reward"])
+
+
+def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
+    """Run one load of a sweep (a campaign run) into ``out_dir``: its ``sweep.csv`` rows and a
+    ``run.json`` recording the run id (staged; nothing is lost if it stops half way)."""
+    from yafs_safetail import __version__
+
+    output = StagedOutput(out_dir, overwrite)
+    with output as staging:
+        frame = run_sweep(_point_config(spec.settings))
+        frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
+        write_text_atomic(staging / "run.json", json.dumps({
+            "package_version": __version__, "campaign_run_id": spec.run_id, "kind": LOAD_POINT,
+            "command": command, "settings": dict(spec.settings)}, indent=1, sort_keys=True) + "\n")
+        output.publish()
+    return out_dir
 
 
 def best_fixed_p99(frame: pd.DataFrame, load: float) -> tuple[str, float]:

@@ -67,12 +67,18 @@ def one_line(error: BaseException) -> str:
 
 
 def execute(task: RunTask) -> RunResult:
-    """Run one experiment; a failure is returned, never raised, so the others go on."""
+    """Run one experiment (or one load of a load sweep); a failure is returned, never raised,
+    so the others go on."""
     started = time.perf_counter()
     try:
-        from yafs_safetail.runs.experiment import run_experiment
+        if task.spec.kind == "load_point":
+            from yafs_safetail.contention.sweep import run_load_point
 
-        run_experiment(make_config(task.spec, Path(task.out_dir), task.command, task.overwrite))
+            run_load_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
+        else:
+            from yafs_safetail.runs.experiment import run_experiment
+
+            run_experiment(make_config(task.spec, Path(task.out_dir), task.command, task.overwrite))
         error = ""
     except Exception as exc:  # any run's failure, bug or bad input, is that run's alone
         error = one_line(exc)

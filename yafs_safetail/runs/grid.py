@@ -62,11 +62,14 @@ class RunSpec:
         name: its folder under the campaign's folder (may hold ``/``).
         run_id: the hash of its identity (:func:`identity`).
         settings: the ExperimentConfig fields it sets, JSON values (paths absolute).
+        kind: what executes it: ``"experiment"`` (``run_experiment``) or ``"load_point"`` (one
+            load of a contention-world load sweep, ``contention.sweep.run_load_point``).
     """
 
     name: str
     run_id: str
     settings: Mapping[str, Any]
+    kind: str = "experiment"
 
 
 @functools.cache
@@ -103,6 +106,11 @@ def _where(path: Path) -> str:
     return str(resolved.relative_to(REPOSITORY)) if resolved.is_relative_to(REPOSITORY) else str(resolved)
 
 
+def file_identity(path: Path) -> dict[str, str]:
+    """A file's place and content in a run's identity (an edited file is a new run)."""
+    return {"path": _where(path), "sha256": _digest(path)}
+
+
 def _method_identity(spec: str) -> dict[str, str]:
     target = spec.partition("=")[2] if "=" in spec.split(":")[0] else spec
     source = Path(target.rpartition(":")[0])
@@ -116,7 +124,7 @@ def identity(settings: Mapping[str, Any]) -> dict[str, Any]:
     for name in SETTABLE_FIELDS:
         value = settings.get(name, _json_value(getattr(defaults, name)))
         if name in PATH_FIELDS and value is not None:
-            value = {"path": _where(Path(value)), "sha256": _digest(Path(value))}
+            value = file_identity(Path(value))
         elif name == "methods":
             value = [_method_identity(spec) for spec in value]
         full[name] = value
