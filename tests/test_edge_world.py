@@ -153,3 +153,22 @@ def test_bad_parameters_are_refused_and_the_fallback_covers_slow_worlds(traces):
     with pytest.raises(UnknownUseCaseError, match="use case: 4"):
         get_use_case(4)
     assert sorted(USE_CASES) == [1, 2, 3]
+
+
+def test_a_load_trace_shorter_than_an_episode_is_refused(tmp_path):
+    import shutil
+
+    from yafs_safetail.edge.inputs import load_inputs, load_scenario_for
+    from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, REPOSITORY
+    from yafs_safetail.edge.world import WorldError, build_world
+
+    traces = tmp_path / "traces"
+    shutil.copytree(REPOSITORY / "traces", traces, ignore=shutil.ignore_patterns("*.py", "README.md"))
+    rows = (traces / "load.csv").read_text().splitlines()[:6]
+    (traces / "load.csv").write_text("\n".join(rows) + "\n")
+    use_case = get_use_case(1)
+    inputs = load_inputs(use_case, traces)
+    scenario = load_scenario_for(inputs, DEFAULT_TOPOLOGY, DEFAULT_PLACEMENT)
+    with pytest.raises(WorldError, match=r"load\.csv: rows: 5 minutes, but an episode \(α_s\) needs at least 256"):
+        build_world(scenario, use_case, inputs, 10, seed=0, phase="test")
+    build_world(scenario, use_case, inputs, 10, seed=0, phase="test", episode_steps=5)  # fits

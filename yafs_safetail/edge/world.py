@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
@@ -334,6 +335,12 @@ def build_world(
     missing = [c for c in scenario.server_conditions if c not in inputs.rtt_pools_s]
     if missing:
         raise WorldError(f"{scenario.topology.source}: conditions {missing} have no RTT pool")
+    minutes = int(inputs.load_users.shape[0])
+    if minutes < episode_steps:
+        # An episode reads one load-trace minute per step; a shorter trace would repeat itself
+        # within every episode.
+        raise WorldError(f"{Path(inputs.source) / 'load.csv'}: rows: {minutes} minutes, but an episode "
+                         f"(α_s) needs at least {episode_steps}")
     n_devices = inputs.n_load_devices
     if max(scenario.server_load_devices) >= n_devices:
         raise WorldError(f"{scenario.topology.source}: load device beyond the trace's {n_devices}")
