@@ -157,3 +157,25 @@ def test_full_retraining_reproduces_shipped_models(tmp_path, compute_traces):
             shipped.predict_s(trace.gamma_matrix(), trace.n_processes),
             atol=1e-3,
         )
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "json"])
+def test_a_damaged_model_file_is_one_line(tmp_path, damage):
+    import shutil
+
+    from yafs_safetail.edge.compute import ComputeModel
+
+    models = tmp_path / "models"
+    shutil.copytree(DEFAULT_TRACE_DIR / "models", models)
+    npz, meta = models / "compute_uc1.npz", models / "compute_uc1.json"
+    if damage == "truncate":
+        npz.write_bytes(npz.read_bytes()[: npz.stat().st_size // 2])
+    elif damage == "garbage":
+        npz.write_bytes(b"not a zip file at all")
+    else:
+        meta.write_text("{\"inputs\": ")
+    target = meta if damage == "json" else npz
+    with pytest.raises(TraceError) as raised:
+        ComputeModel.load(1, models)
+    message = str(raised.value)
+    assert message.startswith(str(target)) and "\n" not in message

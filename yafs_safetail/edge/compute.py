@@ -14,6 +14,7 @@ processes k on the server) to compute latency ŷ; the simulated latency is ŷ + 
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -111,17 +112,27 @@ class ComputeModel:
         for path in (npz_path, json_path):
             if not path.is_file():
                 raise TraceError(f"{path}: compute model file not found (run python traces/generate.py)")
-        meta = json.loads(json_path.read_text())
-        if tuple(meta["inputs"]) != MODEL_INPUTS[use_case]:
-            raise TraceError(f"{json_path}: field 'inputs' is {meta['inputs']}, expected {list(MODEL_INPUTS[use_case])}")
-        with np.load(npz_path) as arrays:
-            n_layers = int(arrays["n_layers"])
-            weights = tuple((arrays[f"kernel_{i}"].astype(float), arrays[f"bias_{i}"].astype(float)) for i in range(n_layers))
-            input_mean = arrays["input_mean"].astype(float)
-            input_std = arrays["input_std"].astype(float)
-            output_scale = float(arrays["output_scale"])
-            output_offset = float(arrays["output_offset"])
-        sigma = pub.SIGMA_S[use_case] if sigma_source == "published" else meta["trace_sigma_s"]
+        try:
+            meta = json.loads(json_path.read_text())
+            inputs = tuple(meta["inputs"])
+            sigma = pub.SIGMA_S[use_case] if sigma_source == "published" else meta["trace_sigma_s"]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise TraceError(f"{json_path}: not a compute model description ({type(exc).__name__}: {exc})") from None
+        if inputs != MODEL_INPUTS[use_case]:
+            raise TraceError(f"{json_path}: field 'inputs' is {list(inputs)}, expected {list(MODEL_INPUTS[use_case])}")
+        try:
+            with np.load(npz_path) as arrays:
+                n_layers = int(arrays["n_layers"])
+                weights = tuple((arrays[f"kernel_{i}"].astype(float), arrays[f"bias_{i}"].astype(float))
+                                for i in range(n_layers))
+                input_mean = arrays["input_mean"].astype(float)
+                input_std = arrays["input_std"].astype(float)
+                output_scale = float(arrays["output_scale"])
+                output_offset = float(arrays["output_offset"])
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+            # A truncated or foreign file: numpy raises BadZipFile, EOFError or KeyError.
+            raise TraceError(f"{npz_path}: truncated or not a compute model ({type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())}); rerun python traces/generate.py") from None
         return cls(use_case, MODEL_INPUTS[use_case], input_mean, input_std, weights, output_scale, output_offset, np.asarray(sigma, dtype=float))
 
     @classmethod
