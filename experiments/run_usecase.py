@@ -69,7 +69,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     parser.add_argument("--redundancy", type=_levels, default=(1, 2, 3),
                         help="levels x of Rand-x, MinLoad-x, MinProp-x (default 1,2,3)")
     parser.add_argument("--topology", type=Path, default=DEFAULT_TOPOLOGY,
-                        help="YAFS topology JSON (default topologies/paper_5servers.json)")
+                        help="YAFS topology JSON with 1 to 10 edge servers (default topologies/paper_5servers.json)")
     parser.add_argument("--placement", type=Path, default=None,
                         help="YAFS placement JSON (default: placements/<topology file name>)")
     parser.add_argument("--method", action="append", default=[], metavar="[NAME=]FILE.py:CLASS",

@@ -245,3 +245,24 @@ def test_only_this_tools_files_are_ever_removed(tmp_path):
     assert (lookalike / "data.txt").read_text() == "keep\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == [".run.partial-mine", "run"]
     assert not (tmp_path / "run" / ".yafs-safetail-partial").exists()
+
+
+def test_more_servers_than_safetail_supports_is_one_line(tmp_path):
+    topology = json.loads((REPOSITORY / "topologies" / "7servers.json").read_text())
+    access_point = next(e["id"] for e in topology["entity"] if e["type"] == "access_point")
+    template = next(e for e in topology["entity"] if e["type"] == "edge_server")
+    next_id = max(e["id"] for e in topology["entity"]) + 1
+    for extra in range(5):
+        topology["entity"].append(dict(template, id=next_id + extra, load_device=extra))
+        topology["link"].append({"s": access_point, "d": next_id + extra, "BW": 2.5, "PR": 0.0, "condition": 2})
+    servers = [e["id"] for e in topology["entity"] if e["type"] == "edge_server"]
+    (tmp_path / "t12.json").write_text(json.dumps(topology))
+    (tmp_path / "p12.json").write_text(json.dumps({"initialAllocation": [
+        {"module_name": "EdgeService", "app": "SafeTail", "id_resource": i} for i in servers]}))
+    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "run_usecase.py"), "--uc", "1",
+                           "--topology", str(tmp_path / "t12.json"), "--placement", str(tmp_path / "p12.json"),
+                           "--out", str(tmp_path / "out"), "--steps-scale", "0.05"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "t12.json: entity: 12 edge servers; SafeTail supports 1 to 10" in done.stderr
+    assert not (tmp_path / "out").exists()

@@ -52,7 +52,7 @@ from yafs_safetail.methods.safetail.presets import (
     get_preset,
     scaled_steps,
 )
-from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
+from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, StateScales, state_dim
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.budget import check_budget
 from yafs_safetail.runs.output import StagedOutput
@@ -176,6 +176,10 @@ def _check(config: ExperimentConfig) -> _Inputs:
         raise ExperimentError(f"--method: two methods are named {sorted(n for n in names if names.count(n) > 1)[0]!r}")
     inputs = load_inputs(use_case, config.traces_dir)
     scenario = load_scenario_for(inputs, Path(config.topology), Path(config.placement))
+    if scenario.n_servers > MAX_SERVERS:
+        raise ExperimentError(
+            f"{config.topology}: entity: {scenario.n_servers} edge servers; SafeTail supports 1 to "
+            f"{MAX_SERVERS} (its network has one output per subset, 2^n - 1; paper assumption iii)")
     for x in config.redundancy_levels:
         if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= scenario.n_servers:
             raise ExperimentError(
