@@ -140,8 +140,10 @@ SCRIPT_COMMANDS = {
     "run": ("experiments/run_usecase.py", "train SafeTail and compare it on one use case"),
     "reproduce": ("experiments/reproduce_all.py", "every use case over several seeds, one report"),
     "calibrate": ("experiments/calibrate.py", "fit the unpublished world parameters"),
+    "compare": ("experiments/compare_runs.py", "two results folders side by side, B / A with intervals"),
+    "sweep": ("experiments/load_sweep.py", "many users: every method against the offered load"),
 }
-USAGE = "usage: yafs-safetail {run,reproduce,calibrate,figures} [options]   (each takes --help)"
+USAGE = "usage: yafs-safetail {run,reproduce,calibrate,compare,sweep,figures} [options]   (each takes --help)"
 
 
 def _script_main(relative: str) -> Callable[[Sequence[str] | None], int | None]:
