@@ -61,6 +61,22 @@ def load_list(text: str) -> tuple[float, ...]:
     return tuple(sorted(loads))
 
 
+def _is_sweep_folder(folder: Path) -> bool:
+    """A folder this command made: a campaign's state file, and a sweep's run.json or nothing
+    but the campaign's files and load folders (so another campaign's folder or a results folder
+    is never written into)."""
+    if not (folder / STATE_FILE).is_file():
+        return False
+    if not (folder / "run.json").exists():
+        # Interrupted before the table was assembled: only the campaign's files and load folders.
+        return all(item.name.startswith(("load-", ".load-", "campaign.", ".campaign."))
+                   for item in folder.iterdir())
+    try:
+        return json.loads((folder / "run.json").read_text()).get("kind") == "load_sweep"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="load_sweep.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -108,7 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                               "at least 100 are needed for a p99")
     command = engine_free_command("experiments/load_sweep.py", sys.argv[1:] if argv is None else argv)
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()) and not (out / STATE_FILE).is_file():
+    if out.exists() and any(out.iterdir()) and not _is_sweep_folder(out):
         raise ContentionError(f"--out {out}: exists and is not a load sweep's folder; give a new folder")
     # Each load is one campaign run (cached by its configuration's hash, resumable, on any
     # engine); the sweep's table is assembled from their folders.

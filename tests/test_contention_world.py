@@ -245,3 +245,14 @@ def test_safetail_rejects_an_unknown_reward():
     with pytest.raises(PolicyError, match="SafeTail: unknown reward 'best'"):
         SafeTailPolicy(5, np.random.default_rng(0), learner=Learner(), scales=None,  # type: ignore[arg-type]
                        training=True, reward_name="best")
+
+
+def test_load_sweep_never_writes_into_another_campaign(tmp_path):
+    other = tmp_path / "campaign"
+    other.mkdir()
+    (other / "campaign.json").write_text("{}")
+    (other / "SWEEP.md").write_text("mine")
+    done = subprocess.run([sys.executable, str(SWEEP), "--loads", "0.5", "--out", str(other)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "is not a load sweep's folder" in done.stderr
+    assert (other / "SWEEP.md").read_text() == "mine"
