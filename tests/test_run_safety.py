@@ -266,3 +266,13 @@ def test_more_servers_than_safetail_supports_is_one_line(tmp_path):
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "t12.json: entity: 12 edge servers; SafeTail supports 1 to 10" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_an_empty_file_named_like_the_lock_is_not_taken(tmp_path):
+    """Only a lock this run made, or one carrying the marker, is used and removed: an empty
+    file of the user's with the lock's name stays."""
+    mine = tmp_path / ".run.lock"
+    mine.touch()
+    done = run("--uc", "1", "--out", tmp_path / "run", *TINY)
+    one_error_line(done, ".run.lock", "not a yafs-safetail lock")
+    assert mine.is_file() and mine.read_text() == "" and not (tmp_path / "run").exists()

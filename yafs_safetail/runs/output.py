@@ -88,7 +88,14 @@ def _lock(target: Path, option: str) -> Iterator[None]:
     path = target.parent / f".{target.name}.lock"
     while True:
         try:
-            descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                descriptor = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+                created = True
+            except FileExistsError:  # another run's (live or killed), or a file of the user's
+                descriptor = os.open(path, os.O_RDWR)
+                created = False
+        except FileNotFoundError:
+            continue  # removed between the two opens by a run that just ended: try again
         except OSError as error:
             raise OSError(f"{option} {target}: cannot write in {target.parent}: {error.strerror}") from None
         handle = os.fdopen(descriptor, "r+")  # held for the whole run
@@ -107,7 +114,9 @@ def _lock(target: Path, option: str) -> Iterator[None]:
             break
         handle.close()
     content = handle.read()
-    if content and not content.startswith(LOCK_MARKER):  # a file of someone else's: leave it
+    # Ours to use and remove: made just now, or carrying the marker (a run that ended or was
+    # killed). Anything else, even an empty file, is someone else's: leave it.
+    if not created and not content.startswith(LOCK_MARKER):
         handle.close()
         raise OutputError(f"{option} {target}: {path} exists and is not a yafs-safetail lock; "
                           "move it away or choose another folder")
