@@ -81,12 +81,16 @@ def check_target(folder: Path, overwrite: bool, option: str = "--out") -> Path:
 #: this tool makes: only files and folders carrying them are ever removed.
 LOCK_MARKER = "yafs-safetail run lock"
 STAGING_MARKER = ".yafs-safetail-partial"
+_LOCK_ATTEMPTS = 100
 
 
 @contextlib.contextmanager
 def _lock(target: Path, option: str) -> Iterator[None]:
     path = target.parent / f".{target.name}.lock"
-    while True:
+    # A few attempts: the lock file may vanish between two opens when a run ends right then.
+    # The count is bounded because some folders (e.g. /proc) answer "no such file" to every
+    # create, which would otherwise loop for ever.
+    for _attempt in range(_LOCK_ATTEMPTS):
         try:
             try:
                 descriptor = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
@@ -113,6 +117,9 @@ def _lock(target: Path, option: str) -> Iterator[None]:
         if same:
             break
         handle.close()
+    else:
+        raise OSError(f"{option} {target}: cannot write in {target.parent}: "
+                      f"cannot create the lock file {path.name} there")
     content = handle.read()
     # Ours to use and remove: made just now, or carrying the marker (a run that ended or was
     # killed). Anything else, even an empty file, is someone else's: leave it.
