@@ -139,7 +139,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_text_atomic(out / "SWEEP.md",
                       f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {args.seed})\n\n"
                       f"`{command}`\n\n" + markdown_table(table) + "\n\n## Goals\n\n"
-                      + checks_markdown(frame, config.loads))
+                      + checks_markdown(frame))
     plot_sweep(frame, out)
     write_text_atomic(out / "run.json", json.dumps({
         "package_version": __version__, "command": command, "kind": "load_sweep",
@@ -150,7 +150,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "test_requests": config.test_requests, "topology": str(args.topology),
         "placement": str(args.placement), "user_conditions": str(args.user_conditions),
         "load_runs": {spec.name: spec.run_id for spec in specs}}, indent=1) + "\n")
-    print(checks_markdown(frame, config.loads))
+    print(checks_markdown(frame))
     print(f"written: {out / SWEEP_FILE}")
     return 0
 

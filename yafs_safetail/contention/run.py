@@ -17,7 +17,7 @@ import numpy as np
 
 from yafs_safetail.contention.engine import EngineResult, RequestOutcome, run_engine
 from yafs_safetail.contention.world import ContentionWorld
-from yafs_safetail.methods.policy import Policy, PolicyError
+from yafs_safetail.methods.policy import Policy, PolicyError, checked_choice
 from yafs_safetail.record import RequestRecord
 
 #: The share of a run's first requests left out of its figures: the servers start empty.
@@ -38,15 +38,13 @@ class PolicyDispatcher:
     def choose(self, request: int, active_users: list[int]) -> Sequence[int]:
         observation = self.world.observation(request, active_users) if self.policy.observes else None
         chosen = self.policy.choose(observation)
-        key = tuple(int(i) for i in chosen)
-        if key not in self._checked:
-            if not key or len(set(key)) != len(key) or not all(0 <= i < self._n for i in key):
-                raise PolicyError(
-                    f"{self.policy.name}: choose() must return distinct server indices in "
-                    f"0..{self._n - 1}, got {key!r}"
-                )
-            self._checked.add(key)
-        return key
+        # Checked once per distinct choice (most policies repeat a few): a tuple is looked up
+        # as it is, anything else (a list, an array) is checked every time.
+        if chosen.__class__ is tuple and chosen in self._checked:
+            return chosen
+        servers = checked_choice(chosen, self._n, self.policy.name)
+        self._checked.add(servers)
+        return servers
 
     def hedge_delay_s(self) -> float:
         return self.policy.hedge_delay_s()

@@ -12,10 +12,10 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -29,6 +29,9 @@ from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import method_rng
+
+if TYPE_CHECKING:
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 
 #: Every fixed method of the sweep (SafeTail is added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
@@ -70,13 +73,12 @@ class SweepConfig:
 
     @property
     def train_requests(self) -> int:
-        return get_preset(self.preset, self.base.use_case,
-                          train_steps=scaled_steps(get_preset(self.preset, self.base.use_case).train_steps,
-                                                   self.steps_scale)).train_steps
+        return scaled_steps(get_preset(self.preset, self.base.use_case).train_steps, self.steps_scale)
 
 
 def _safetail_policy(world: ContentionWorld, preset: str, seed: int, train_steps: int,
-                     reward: str = "paper") -> Policy:
+                     reward: str = "paper") -> SafeTailPolicy:
+    # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
     from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
@@ -109,7 +111,7 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
                                         config.reward)
             trained = run_policy(train_world, safetail)
             log(f"load {load:g}: SafeTail trained on {config.train_requests} requests in {trained.wall_s:.1f} s")
-            safetail.training = False  # type: ignore[attr-defined]
+            safetail.training = False
             policies.append((safetail, config.train_requests))
         for name in config.methods:
             policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name)), 0))
@@ -273,7 +275,7 @@ def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
     return written
 
 
-def checks_markdown(frame: pd.DataFrame, loads: Sequence[float]) -> str:
+def checks_markdown(frame: pd.DataFrame) -> str:
     """The goals of :func:`sweep_checks` as a Markdown table."""
     lines = ["| goal | holds | measured |", "|---|---|---|"]
     lines += [f"| {claim} | {'yes' if ok else 'no'} | {measured} |" for claim, ok, measured in sweep_checks(frame)]

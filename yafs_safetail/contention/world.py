@@ -27,7 +27,6 @@ Units: seconds, bytes, bits per second; rates in requests per second.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -173,6 +172,7 @@ class ContentionWorld:
         self._per_user = bool(np.any(self.conditions != np.asarray(self.scenario.server_conditions)))
         self._current: tuple[int, EdgeWorld] | None = None
         self._block_rtt_s: np.ndarray | None = None
+        self._block_target_s: np.ndarray | None = None
 
     @property
     def n_servers(self) -> int:
@@ -261,10 +261,18 @@ class ContentionWorld:
         world = build_world(self.scenario, self.use_case, self.inputs, n_steps, seed=self.config.seed,
                             phase=phase, settings=self.settings)
         self._current = (index, world)
-        self._block_rtt_s = self._user_rtt_s(world, phase, index * size) if self._per_user else world.rtt_s
+        if self._per_user:
+            users = self.user[index * size:index * size + n_steps]
+            self._block_rtt_s = self._user_rtt_s(world, phase, users)
+            # τ (Eq. 4) from each request's user's ρ^μ_i, for the whole block at once.
+            self._block_target_s = np.asarray(target_latency_s(
+                world.input_bytes, world.est_output_bytes, world.user_uplink_bps, world.user_downlink_bps,
+                self.user_median_propagation_s[users], world.median_compute_s), dtype=float)
+        else:
+            self._block_rtt_s, self._block_target_s = world.rtt_s, world.target_s
         return world
 
-    def _user_rtt_s(self, world: EdgeWorld, phase: str, first: int) -> np.ndarray:
+    def _user_rtt_s(self, world: EdgeWorld, phase: str, users: np.ndarray) -> np.ndarray:
         """ρ per (request, server) from each request's user's conditions, with the same RTT
         quantiles the block's world drew (so a user at the topology's conditions sees the same
         RTTs as under ``"topology"``)."""
@@ -274,7 +282,6 @@ class ContentionWorld:
         by_condition = {c: propagation(self.inputs, (c,) * self.n_servers, quantiles, extra_s,
                                        self.settings.propagation_rtt_fraction)[0]
                         for c in np.unique(self.conditions).tolist()}
-        users = self.user[first:first + world.n_steps]
         rtt_s = np.empty_like(world.rtt_s)
         for c, table in by_condition.items():
             mask = self.conditions[users] == c
@@ -293,11 +300,12 @@ class ContentionWorld:
     def block(self, index: int) -> RequestBlock:
         world = self.block_world(index)
         n = world.n_steps
+        assert self._block_rtt_s is not None  # set with the block's world
         return RequestBlock(
             first=index * self.config.block_requests,
             input_transfer_s=world.input_transfer_by_level_s.reshape(n, -1).tolist(),
             output_transfer_s=world.output_transfer_by_level_s.reshape(n, -1).tolist(),
-            propagation_s=(world.rtt_s if self._block_rtt_s is None else self._block_rtt_s).tolist(),
+            propagation_s=self._block_rtt_s.tolist(),
             work_s=world.compute_by_processes_s[:, :, 0].tolist(),
         )
 
@@ -305,24 +313,17 @@ class ContentionWorld:
         """ω^t of request ``request`` (its block must be the current one)."""
         size = self.config.block_requests
         world = self.block_world(request // size)
-        observation = world.observation(request % size, np.asarray(active_users, dtype=np.int64),
-                                        label=request, server_max_load=self.server_max_load)
-        if self._per_user:
-            observation = dataclasses.replace(
-                observation, server_median_propagation_s=self.user_median_propagation_s[self.user[request]])
-        return observation
+        return world.observation(
+            request % size, np.asarray(active_users, dtype=np.int64), label=request,
+            server_max_load=self.server_max_load,
+            median_propagation_s=self.user_median_propagation_s[self.user[request]] if self._per_user else None)
 
     def target_s(self, request: int) -> float:
         """τ (Eq. 4) of request ``request``, from its user's ρ^μ_i."""
         size = self.config.block_requests
-        world = self.block_world(request // size)
-        step = request % size
-        if not self._per_user:
-            return float(world.target_s[step])
-        return float(target_latency_s(
-            world.input_bytes[step], world.est_output_bytes[step], world.user_uplink_bps[step],
-            world.user_downlink_bps[step], self.user_median_propagation_s[self.user[request]],
-            world.median_compute_s))
+        self.block_world(request // size)
+        assert self._block_target_s is not None
+        return float(self._block_target_s[request % size])
 
 
 def user_conditions(config: ContentionConfig, scenario: EdgeScenario, known: tuple[int, ...]) -> np.ndarray:

@@ -224,7 +224,8 @@ class EdgeWorld:
         return np.where(admitted, latency, np.inf)
 
     def observation(self, step: int, active_users: np.ndarray, *, label: int | None = None,
-                    server_max_load: np.ndarray | None = None) -> Observation:
+                    server_max_load: np.ndarray | None = None,
+                    median_propagation_s: np.ndarray | None = None) -> Observation:
         """ω^t at step ``step`` given each server's current number of active users ℓ_i.
 
         Args:
@@ -233,6 +234,7 @@ class EdgeWorld:
             label: the ``step`` recorded in the observation (default ``step``; the contention
                 world draws its requests in blocks and labels them by their index in the run).
             server_max_load: each server's load limit (default ``max_load`` everywhere).
+            median_propagation_s: ρ^μ_i of this request's user (default the topology user's).
         """
         active = np.asarray(active_users, dtype=np.int64)
         # Called once per request: flat takes on small arrays keep it to a few microseconds.
@@ -245,7 +247,8 @@ class EdgeWorld:
             server_memory_util=_MEMORY_UTIL.take(processes),
             server_cpu_util=_CPU_UTIL.take(processes),
             server_active_users=active,
-            server_median_propagation_s=self.median_propagation_s,
+            server_median_propagation_s=(self.median_propagation_s if median_propagation_s is None
+                                         else median_propagation_s),
             input_bytes=float(self.input_bytes[step]),
             est_output_bytes=float(self.est_output_bytes[step]),
             gamma=self.gamma[step],

@@ -33,6 +33,18 @@ class PolicyError(ValueError):
     """A bad policy, policy parameter or method name (one line naming it)."""
 
 
+def checked_choice(chosen: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
+    """What ``choose`` returned as Python ints in its order (a hedge tries them in that order),
+    or PolicyError naming the method and the choice: non-empty, distinct, within 0..n-1."""
+    try:
+        servers = tuple(int(i) for i in chosen)
+    except (TypeError, ValueError):
+        raise PolicyError(f"{name}: choose() must return server indices, got {chosen!r}") from None
+    if not servers or len(set(servers)) != len(servers) or min(servers) < 0 or max(servers) >= n_servers:
+        raise PolicyError(f"{name}: invalid subset {chosen!r} for {n_servers} servers")
+    return servers
+
+
 class Policy:
     """Base class of every method: SafeTail, the baselines and a user's own.
 

@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.methods.policy import Policy, PolicyError
+from yafs_safetail.methods.policy import Policy, PolicyError, checked_choice
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.sim.hooks import SINK_MODULE, EdgeModel
 from yafs_safetail.yafs.selection import Selection
@@ -20,13 +20,7 @@ if TYPE_CHECKING:
 
 def checked_subset(subset: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
     """``subset`` as ascending Python ints, or PolicyError naming the method and the subset."""
-    try:
-        servers = tuple(sorted(int(i) for i in subset))
-    except (TypeError, ValueError):
-        raise PolicyError(f"{name}: choose() must return server indices, got {subset!r}") from None
-    if not servers or len(set(servers)) != len(servers) or servers[0] < 0 or servers[-1] >= n_servers:
-        raise PolicyError(f"{name}: invalid subset {subset!r} for {n_servers} servers")
-    return servers
+    return tuple(sorted(checked_choice(subset, n_servers, name)))
 
 
 class PolicySelection(Selection):
