@@ -22,6 +22,7 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
+    non_negative_float,
     non_negative_int,
     positive_float,
     positive_int,
@@ -64,6 +65,12 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
                         help="run a budget beyond the limits (10 GB of results or 4 GB of memory)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier results folder at --out (only a results folder)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue an interrupted run's training from its checkpoint (give the "
+                             "same options; the results equal an uninterrupted run's)")
+    parser.add_argument("--checkpoint-every-s", type=non_negative_float, default=60.0,
+                        help="wall-clock seconds between two training checkpoints, kept beside "
+                             "--out as .<name>.checkpoint until the run ends (default 60)")
     parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="fraction of the preset's training and testing steps (default 1)")
     parser.add_argument("--redundancy", type=_levels, default=(1, 2, 3),
@@ -106,6 +113,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         write_yafs_csv=args.yafs_csv, figures=not args.no_figures,
         progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
         overwrite=args.overwrite, force=args.force, step_interval_s=args.step_interval_s,
+        resume=args.resume, checkpoint_every_s=args.checkpoint_every_s,
     )
 
 

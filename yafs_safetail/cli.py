@@ -53,6 +53,17 @@ def positive_float(text: str) -> float:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """An argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text!r}") from None
+    if not value >= 0 or value == float("inf"):  # also refuses nan
+        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text!r}")
+    return value
+
+
 def _integer(text: str, smallest: int, what: str) -> int:
     try:
         value = int(text)
@@ -120,11 +131,13 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     except BaseException as error:
         # SIGTERM raised inside library code may come out as another exception (an import
         # interrupted by it becomes an ImportError): the flag says what really happened.
+        # A note added on the way out (a run's kept training checkpoint) ends the same line.
+        notes = "".join(f"; {note}" for note in getattr(error, "__notes__", ()))
         if isinstance(error, Terminated) or _terminating.is_set():
-            print("error: terminated; no partial results were kept", file=sys.stderr)
+            print(f"error: terminated; no partial results were kept{notes}", file=sys.stderr)
             return EXIT_TERMINATED
         if isinstance(error, KeyboardInterrupt):
-            print("error: interrupted; no partial results were kept", file=sys.stderr)
+            print(f"error: interrupted; no partial results were kept{notes}", file=sys.stderr)
             return 130
         if not isinstance(error, ValueError | OSError) or os.environ.get("YAFS_SAFETAIL_DEBUG"):
             raise

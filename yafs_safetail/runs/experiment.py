@@ -23,6 +23,7 @@ from __future__ import annotations
 import importlib
 import math
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -55,10 +56,20 @@ from yafs_safetail.methods.safetail.presets import (
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, StateScales, state_dim
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.budget import check_budget
+from yafs_safetail.runs.checkpoint import (
+    CheckpointError,
+    TrainingCheckpoint,
+    check_checkpoint_place,
+    checkpoint_folder,
+    discard_checkpoint,
+    has_checkpoint,
+    read_checkpoint,
+    write_checkpoint,
+)
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
-from yafs_safetail.sim.runner import simulate
+from yafs_safetail.sim.runner import Simulation, simulate
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
@@ -103,6 +114,10 @@ class ExperimentConfig:
         run_id: the campaign's identifier of this configuration (``runs.campaign``), recorded
             in ``run.json`` as ``campaign_run_id`` so that a rerun of the campaign knows the
             folder holds this very run; empty (not recorded) outside campaigns.
+        resume: continue the interrupted training of this configuration from its checkpoint
+            (``runs.checkpoint``; ``--resume``); the results are those of an uninterrupted run.
+        checkpoint_every_s: wall time between two training checkpoints (one is also written
+            when training ends); 0: at every chance. None: no checkpoints.
     """
 
     use_case: int = 1
@@ -126,6 +141,12 @@ class ExperimentConfig:
     overwrite: bool = False
     force: bool = False
     run_id: str = ""
+    resume: bool = False
+    checkpoint_every_s: float | None = 60.0
+
+
+#: Training requests between two chances to checkpoint (and two progress-bar updates).
+CHECKPOINT_CHUNK_STEPS = 100
 
 
 @dataclass
@@ -238,14 +259,71 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     started = time.perf_counter()
     output = StagedOutput(Path(config.out_dir), config.overwrite)  # checks the target first
     inputs = _check(config)
-    with output as staging:
-        summary = _run_into(staging, config, inputs, timings, started)
-        output.publish()
+    checkpoints = _Checkpoints.for_run(config, inputs, output.target)
+    try:
+        with output as staging:
+            summary = _run_into(staging, config, inputs, timings, started, checkpoints)
+            output.publish()
+    except BaseException as error:
+        if checkpoints is not None and checkpoints.written:
+            error.add_note(f"training checkpoint kept in {checkpoint_folder(output.target)}: "
+                           "the same command with --resume continues it")
+        raise
+    if checkpoints is not None:
+        discard_checkpoint(output.target)  # the results are in place: nothing to resume
     return ExperimentReport(out_dir=config.out_dir, summary=summary, timings_s=timings)
 
 
+@dataclass
+class _Checkpoints:
+    """A run's training checkpoints: the one it resumes from, and when to write the next."""
+
+    target: Path
+    run_id: str
+    every_s: float
+    resume_from: TrainingCheckpoint | None
+    last_written: float = field(default_factory=time.perf_counter)
+    written: bool = False
+
+    @classmethod
+    def for_run(cls, config: ExperimentConfig, inputs: _Inputs, target: Path) -> _Checkpoints | None:
+        """None when the run does not train or checkpoints are off. Reads the checkpoint to
+        resume from (CheckpointError before anything runs if it does not fit)."""
+        # A resumed training phase cannot append to the YAFS CSVs of the interrupted one.
+        trains = inputs.train_world is not None and not config.write_yafs_csv
+        if config.resume and not trains:
+            raise CheckpointError("--resume: only a training run with no --yafs-csv and no "
+                                  "--policy keeps checkpoints")
+        if not trains or config.checkpoint_every_s is None:
+            return None
+        from yafs_safetail.runs.grid import config_run_id
+
+        check_checkpoint_place(target)
+        run_id = config_run_id(config)
+        resume_from = read_checkpoint(target, run_id) if config.resume else None
+        if resume_from is None and has_checkpoint(target):
+            print(f"warning: {checkpoint_folder(target)} holds an interrupted run's checkpoint; this "
+                  "run starts over and replaces it (--resume continues it)", file=sys.stderr)
+        return cls(target, run_id, float(config.checkpoint_every_s), resume_from,
+                   written=resume_from is not None)
+
+    def write(self, policy: Any, next_step: int, records: list[Any], force: bool = False) -> None:
+        now = time.perf_counter()
+        if not force and now - self.last_written < self.every_s:
+            return
+        # Set first: a kill during the write leaves the previous checkpoint or this one, both
+        # of which --resume continues.
+        self.written = True
+        write_checkpoint(self.target, TrainingCheckpoint(
+            run_id=self.run_id, next_step=next_step, learner_state=policy.learner.training_state(),
+            records=list(records), decision_time_s=policy.decision_time_s,
+            training_time_s=policy.training_time_s))
+        self.last_written = time.perf_counter()
+
+
 def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
-              timings: dict[str, float], started: float) -> pd.DataFrame:
+              timings: dict[str, float], started: float,
+              checkpoints: _Checkpoints | None) -> pd.DataFrame:
     """Steps 3 to 5 into the staging folder; returns the summary."""
     yafs_dir = staging / YAFS_DIR if config.write_yafs_csv else None
     if yafs_dir is not None:
@@ -258,7 +336,7 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     )
     workers = start_workers(job, config.workers)
     try:
-        learner, safetail_frames = _safetail(config, inputs, yafs_dir, timings, started)
+        learner, safetail_frames = _safetail(config, inputs, yafs_dir, timings, started, checkpoints)
         other_frames = _other_methods(job, workers, timings)
     finally:
         for worker in workers:
@@ -280,9 +358,11 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
 
 
 def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
-              timings: dict[str, float], started: float) -> tuple[Any, list[pd.DataFrame]]:
-    """Build or load the learner; train SafeTail (unless evaluating a saved policy), then test
-    it greedily. Returns the learner and SafeTail's rows of both phases."""
+              timings: dict[str, float], started: float,
+              checkpoints: _Checkpoints | None) -> tuple[Any, list[pd.DataFrame]]:
+    """Build or load the learner; train SafeTail (unless evaluating a saved policy; from a
+    checkpoint when resuming), then test it greedily. Returns the learner and SafeTail's rows
+    of both phases."""
     t0 = time.perf_counter()
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
@@ -315,7 +395,8 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
     t0 = time.perf_counter()
     frames = []
     if inputs.train_world is not None:
-        frames.append(phase(inputs.train_world, "train"))
+        frames.append(records_frame(_train(config, inputs, policy, yafs_dir, checkpoints),
+                                    "train", episode_steps))
     policy.training = False
     frames.append(phase(inputs.test_world, "test"))
     timings["decisions"] = policy.decision_time_s
@@ -323,6 +404,35 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
     # Simulation time is reported without the learner's share.
     timings["simulation"] = time.perf_counter() - t0 - policy.decision_time_s - policy.training_time_s
     return learner, frames
+
+
+def _train(config: ExperimentConfig, inputs: _Inputs, policy: Any, yafs_dir: Path | None,
+           checkpoints: _Checkpoints | None) -> list[Any]:
+    """SafeTail's training phase, from its checkpoint when resuming; returns every record."""
+    world = inputs.train_world
+    assert world is not None
+    label = f"UC{inputs.use_case.number} {SAFETAIL} train" if config.progress else None
+    path = None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_train"
+    if checkpoints is None:
+        return simulate(world, policy, config.step_interval_s, path, label)
+    earlier: list[Any] = []
+    first_step = 0
+    if checkpoints.resume_from is not None:
+        state = checkpoints.resume_from
+        policy.learner.restore_training_state(state.learner_state)
+        policy.decision_time_s, policy.training_time_s = state.decision_time_s, state.training_time_s
+        earlier, first_step = list(state.records), state.next_step
+
+    def after_chunk(simulation: Simulation) -> None:
+        # Only between two requests with nothing running can a fresh simulation take over.
+        if simulation.quiescent:
+            checkpoints.write(policy, simulation.next_step, earlier + simulation.records)
+
+    records = earlier + simulate(world, policy, config.step_interval_s, path, label,
+                                 first_step=first_step, after_chunk=after_chunk,
+                                 chunk_steps=CHECKPOINT_CHUNK_STEPS)
+    checkpoints.write(policy, world.n_steps, records, force=True)  # a kill while testing resumes here
+    return records
 
 
 def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, float]) -> list[pd.DataFrame]:

@@ -45,7 +45,8 @@ ID_LENGTH = 12
 
 #: Fields that say where a run goes and how it shows itself, never what it computes: the
 #: campaign sets them, and they are left out of the run id.
-RUNTIME_FIELDS = ("out_dir", "progress", "command", "workers", "overwrite", "force", "run_id")
+RUNTIME_FIELDS = ("out_dir", "progress", "command", "workers", "overwrite", "force", "run_id",
+                  "resume", "checkpoint_every_s")
 PATH_FIELDS = ("topology", "placement", "traces_dir", "policy")
 SETTABLE_FIELDS = tuple(f.name for f in fields(ExperimentConfig) if f.name not in RUNTIME_FIELDS)
 
@@ -261,6 +262,11 @@ def load_grid(path: Path) -> list[RunSpec]:
     if name is not None and not isinstance(name, str):
         raise GridError(f"{path}: name = {name!r}: expected a text template")
     return expand(base, axes, name, source=str(path))
+
+
+def config_run_id(config: ExperimentConfig) -> str:
+    """The run id of an ExperimentConfig's settings (what its results depend on)."""
+    return run_id({name: _json_value(getattr(config, name)) for name in SETTABLE_FIELDS})
 
 
 def make_config(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> ExperimentConfig:

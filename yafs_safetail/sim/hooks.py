@@ -165,6 +165,11 @@ class EdgeModel:
             self.requests_seen += 1
         return step
 
+    @property
+    def copies_running(self) -> int:
+        """The project's own copies holding a server process now."""
+        return sum(self._own_running)
+
     def observe(self, step: int) -> Observation:
         """ω^t: the servers' state when step ``step``'s request is issued (now)."""
         return self.world.observation(step, self.world.background_users[step] + self._own_running)

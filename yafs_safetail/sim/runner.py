@@ -7,6 +7,7 @@ here (a YAFS-style script can do the same by hand, see ``examples/paper_scenario
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,12 +46,27 @@ class Simulation:
     selection: PolicySelection
     population: EdgePopulation
 
+    first_step: int = 0
+
     def run_until_request(self, n_requests: int) -> None:
-        """Run until the first ``n_requests`` requests have been emitted and completed (one
-        request every ``population.step_interval_s``, each finished before the next)."""
-        until_s = n_requests * self.population.step_interval_s
+        """Run until the first ``n_requests`` requests of this simulation have been emitted and
+        completed (one request every ``population.step_interval_s``, each finished before the
+        next)."""
+        until_s = self.population.until_s(n_requests)
         if until_s > self.sim.env.now:  # simpy refuses to run up to the present
             self.sim.run(until=until_s)
+
+    @property
+    def next_step(self) -> int:
+        """The world step of the next request (every earlier one has its record)."""
+        return self.first_step + len(self.records)
+
+    @property
+    def quiescent(self) -> bool:
+        """No request pending and no copy running: a fresh simulation started at
+        :attr:`next_step` would continue this one exactly (what a checkpoint needs)."""
+        return (self.edge.requests_seen == self.next_step and not self.edge.copies_running
+                and not self.selection.pending_requests)
 
     @property
     def records(self) -> list[RequestRecord]:
@@ -58,7 +74,7 @@ class Simulation:
 
 
 def deploy(world: EdgeWorld, policy: Policy, step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
-           results_path: Path | None = None) -> Simulation:
+           results_path: Path | None = None, first_step: int = 0) -> Simulation:
     """A fresh Sim over ``world`` (its scenario gives topology and placement) driven by ``policy``.
 
     Args:
@@ -66,9 +82,12 @@ def deploy(world: EdgeWorld, policy: Policy, step_interval_s: float = DEFAULT_ST
         policy: the method.
         step_interval_s: time between requests.
         results_path: YAFS results path prefix (None: no YAFS CSVs).
+        first_step: the world step of the first request (a training phase resumed from a
+            checkpoint); its records carry the steps and request ids of an uninterrupted run.
     """
     scenario = world.scenario
     edge = EdgeModel(world)
+    edge.requests_seen = first_step
     topology = Topology()
     topology.load(scenario.topology.data)
     sim = Sim(
@@ -79,14 +98,17 @@ def deploy(world: EdgeWorld, policy: Policy, step_interval_s: float = DEFAULT_ST
         write_results=results_path is not None,
     )
     selection = PolicySelection(edge, policy)
-    population = EdgePopulation(scenario.user_node, step_interval_s)
+    # The core numbers requests 1, 2, ... from its start; an uninterrupted run's request of
+    # step t has id t + 1.
+    selection.request_id_offset = first_step
+    population = EdgePopulation(scenario.user_node, step_interval_s, first_step=first_step)
     sim.deploy_app(
         edge_application(scenario.app_name, scenario.module_name),
         EdgePlacement(scenario.placement),
         population,
         selection,
     )
-    return Simulation(sim, edge, selection, population)
+    return Simulation(sim, edge, selection, population, first_step)
 
 
 def simulate(
@@ -96,6 +118,9 @@ def simulate(
     results_path: Path | None = None,
     progress_label: str | None = None,
     n_requests: int | None = None,
+    first_step: int = 0,
+    after_chunk: Callable[[Simulation], None] | None = None,
+    chunk_steps: int = PROGRESS_CHUNK_STEPS,
 ) -> list[RequestRecord]:
     """Run every request of ``world`` (or its first ``n_requests``) with ``policy``.
 
@@ -106,27 +131,35 @@ def simulate(
         results_path: YAFS results path prefix (None: no YAFS CSVs).
         progress_label: show a progress bar with this label (None: silent).
         n_requests: run only the world's first requests (None: all of them).
+        first_step: start at this step (resuming; the records are of the later steps only).
+        after_chunk: called with the simulation after every ``chunk_steps`` requests (where
+            a training run writes its checkpoints).
+        chunk_steps: requests between two progress updates and ``after_chunk`` calls.
 
     Returns:
-        One record per request, in step order.
+        One record per request from ``first_step`` on, in step order.
 
     Raises:
         SimulationError: a request did not complete before the next one was due.
     """
-    simulation = deploy(world, policy, step_interval_s, results_path)
-    n_steps = world.n_steps if n_requests is None else min(int(n_requests), world.n_steps)
+    simulation = deploy(world, policy, step_interval_s, results_path, first_step)
+    n_steps = (world.n_steps if n_requests is None else min(int(n_requests), world.n_steps)) - first_step
     bar = None
     if progress_label is not None:
         from tqdm import tqdm
 
-        bar = tqdm(total=n_steps, desc=progress_label, unit="req", file=sys.stderr, leave=False)
+        bar = tqdm(total=n_steps + first_step, initial=first_step, desc=progress_label, unit="req",
+                   file=sys.stderr, leave=False)
     done = 0
     while done < n_steps:
-        # Chunked runs only to move the progress bar; Sim.run continues the same simulation.
-        done = min(n_steps, done + PROGRESS_CHUNK_STEPS)
+        # Chunked runs only to move the progress bar and to let a training run checkpoint;
+        # Sim.run continues the same simulation.
+        done = min(n_steps, done + chunk_steps)
         simulation.run_until_request(done)
         if bar is not None:
-            bar.update(len(simulation.records) - bar.n)
+            bar.update(first_step + len(simulation.records) - bar.n)
+        if after_chunk is not None:
+            after_chunk(simulation)
     if bar is not None:
         bar.close()
     if len(simulation.records) != n_steps:

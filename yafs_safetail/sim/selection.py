@@ -55,6 +55,8 @@ class PolicySelection(Selection):
         self.policy = policy
         self.name = policy.name
         self.records: list[RequestRecord] = []
+        #: Added to the core's request ids in the records (a simulation resumed mid-phase).
+        self.request_id_offset = 0
         self._on_record = on_record if on_record is not None else self.records.append
         self._pending: dict[Any, tuple[int, tuple[int, ...]]] = {}
         self._service_des: list[Any] | None = None
@@ -102,6 +104,11 @@ class PolicySelection(Selection):
             route = self._reply_routes[topology_src] = ([model.reply_path(topology_src)], [self._sink_des])
         return route
 
+    @property
+    def pending_requests(self) -> int:
+        """Requests dispatched whose record is not built yet."""
+        return len(self._pending)
+
     def on_request_complete(self, sim: Sim, outcome: RequestOutcome) -> None:
         pending = self._pending.pop(outcome.request_id, None)
         if pending is None:
@@ -123,7 +130,7 @@ class PolicySelection(Selection):
         record = RequestRecord(
             method=self.name,
             step=step,
-            request_id=outcome.request_id,
+            request_id=outcome.request_id + self.request_id_offset,
             time_emit_s=outcome.time_emit,
             latency_s=latency_s,
             target_s=model.target_latency_s(step),

@@ -208,7 +208,50 @@ class SafeTailLearner:
         """Softmax outputs of the Keras model for a batch of states (for analysis, not speed)."""
         return np.asarray(self._model(np.asarray(states, dtype=np.float32), training=False))
 
-    # -- persistence -------------------------------------------------------------------------
+    # -- training checkpoints (runs.checkpoint) ----------------------------------------------
+
+    def training_state(self) -> dict[str, Any]:
+        """Everything training changes, as plain values and NumPy arrays: the network's
+        weights, Adam's slots and step count, the replay buffer, the counters and both random
+        generators. :meth:`restore_training_state` on a learner built with the same arguments
+        continues exactly where this one stands (same decisions, same updates)."""
+        return {
+            "weights": [np.array(w) for w in self._model.get_weights()],
+            "optimizer": [np.array(v.numpy()) for v in self._model.optimizer.variables],
+            "states": self._states.copy(),
+            "targets": self._targets.copy(),
+            "n_stored": self._n_stored,
+            "n_buffered": self._n_buffered,
+            "n_rounds": self._n_rounds,
+            "last_round_loss": self.last_round_loss,
+            "explore_rng": self._explore_rng.bit_generator.state,
+            "shuffle_rng": self._shuffle_rng.bit_generator.state,
+        }
+
+    def restore_training_state(self, state: Mapping[str, Any]) -> None:
+        """Continue from :meth:`training_state` of a learner built with the same arguments.
+
+        Raises:
+            ValueError: the state is of another network or buffer shape.
+        """
+        weights = list(state["weights"])
+        variables = self._model.optimizer.variables
+        if (len(weights) != len(self._model.get_weights()) or len(state["optimizer"]) != len(variables)
+                or state["states"].shape != self._states.shape
+                or state["targets"].shape != self._targets.shape):
+            raise ValueError("the checkpoint is of another network or replay buffer")
+        self._model.set_weights(weights)
+        for variable, value in zip(variables, state["optimizer"], strict=True):
+            variable.assign(value)
+        self._states[...] = state["states"]
+        self._targets[...] = state["targets"]
+        self._n_stored = int(state["n_stored"])
+        self._n_buffered = int(state["n_buffered"])
+        self._n_rounds = int(state["n_rounds"])
+        self.last_round_loss = state["last_round_loss"]
+        self._explore_rng.bit_generator.state = state["explore_rng"]
+        self._shuffle_rng.bit_generator.state = state["shuffle_rng"]
+        self._forward = NumpyForward.from_model(self._model)
 
     # -- persistence (methods.safetail.persistence) ----------------------------------------
 

@@ -1,0 +1,162 @@
+"""--resume: an interrupted training continues from its checkpoint and the results files are
+byte for byte those of an uninterrupted run, wherever the run was stopped; a checkpoint that
+does not fit is one line; only the tool's own checkpoint folder is ever replaced or removed."""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_run_safety import one_error_line, run, snapshot, start, wait_for
+
+from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
+from yafs_safetail.runs import checkpoint as checkpoint_module
+from yafs_safetail.runs import experiment
+from yafs_safetail.runs.checkpoint import CHECKPOINT_FILE, checkpoint_folder
+from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
+
+#: A budget whose training phase has several checkpoint chances (one per 100 requests).
+SMALL = ["--steps-scale", "0.05", "--redundancy", "1", "--no-figures", "--quiet", "--workers", "1"]
+RESULT_FILES = ("requests.csv", "summary.csv", "summary.md", "policy.keras", "policy.keras.json")
+
+
+def results_of(folder: Path) -> dict[str, bytes]:
+    return {name: (folder / name).read_bytes() for name in RESULT_FILES}
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> dict[str, bytes]:
+    out = tmp_path_factory.mktemp("uninterrupted") / "run"
+    done = run("--uc", "1", "--out", out, *SMALL)
+    assert done.returncode == 0, done.stderr
+    assert not checkpoint_folder(out).exists()  # gone once the results are in place
+    return results_of(out)
+
+
+def test_sigterm_mid_training_then_resume_gives_the_uninterrupted_files(tmp_path, uninterrupted):
+    out = tmp_path / "run"
+    saved = checkpoint_folder(out) / CHECKPOINT_FILE
+    process = start("--uc", "1", "--out", out, *SMALL, "--checkpoint-every-s", "0")
+    wait_for(lambda: saved.is_file() or process.poll() is not None)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    if process.returncode == 0:
+        pytest.fail("the run finished before it could be stopped; raise SMALL's budget")
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("error: terminated") and "--resume" in last, last
+    assert not out.exists() and saved.is_file()
+    done = run("--uc", "1", "--out", out, *SMALL, "--checkpoint-every-s", "0", "--resume")
+    assert done.returncode == 0, done.stderr
+    assert results_of(out) == uninterrupted
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+class _Stop(KeyboardInterrupt):
+    """Stands for a kill: raised by the fault injector after a chosen checkpoint."""
+
+
+@pytest.mark.parametrize("stop_after", [1, 4, "last"])
+def test_stopped_after_any_checkpoint_resumes_to_the_same_results(tmp_path, monkeypatch, stop_after):
+    # In process, so the kill lands exactly after the chosen checkpoint (the first, a middle
+    # one, or the one written when training ends, which resumes straight into the test phase).
+    config = ExperimentConfig(use_case=1, out_dir=tmp_path / "run", steps_scale=0.05,
+                              redundancy_levels=(1,), figures=False, progress=False, workers=1,
+                              checkpoint_every_s=0.0)
+    reference = run_experiment(dataclasses.replace(config, out_dir=tmp_path / "reference",
+                                                   checkpoint_every_s=None))
+    train_steps = scaled_steps(get_preset("paper", 1).train_steps, 0.05)
+    assert train_steps > 4 * experiment.CHECKPOINT_CHUNK_STEPS  # room for a middle checkpoint
+    written: list[int] = []
+    real_write = checkpoint_module.write_checkpoint
+
+    def write_then_stop(target, checkpoint):  # type: ignore[no-untyped-def]
+        real_write(target, checkpoint)
+        written.append(checkpoint.next_step)
+        if (stop_after == "last" and checkpoint.next_step == train_steps) or len(written) == stop_after:
+            raise _Stop
+
+    monkeypatch.setattr(experiment, "write_checkpoint", write_then_stop)
+    with pytest.raises(_Stop) as stopped:
+        run_experiment(config)
+    assert any("--resume" in note for note in getattr(stopped.value, "__notes__", []))
+    assert not config.out_dir.exists()
+    monkeypatch.setattr(experiment, "write_checkpoint", real_write)
+    resumed = run_experiment(dataclasses.replace(config, resume=True))
+    assert written[-1] > 0
+    assert results_of(resumed.out_dir) == results_of(reference.out_dir)
+    assert not checkpoint_folder(config.out_dir).exists()
+
+
+def test_the_checkpoint_restores_the_learner_exactly(tmp_path):
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+
+    config = dataclasses.replace(get_preset("tuned", 1), kappa=8, batch_size=4)
+    rng = np.random.default_rng(5)
+    states = rng.random((40, 6), dtype=np.float32)
+    rewards = -rng.random(40)
+
+    def feed(learner: SafeTailLearner, rows: range) -> list[int]:
+        actions = []
+        for i in rows:
+            action = learner.act(states[i], explore=True)
+            learner.observe(states[i], action, float(rewards[i]))
+            actions.append(action)
+        return actions
+
+    straight = SafeTailLearner(3, 6, config, seed=9)
+    first = feed(straight, range(20))
+    state = pickle.loads(pickle.dumps(straight.training_state()))
+    rest = feed(straight, range(20, 40))
+    restored = SafeTailLearner(3, 6, config, seed=9)
+    restored.restore_training_state(state)
+    assert feed(restored, range(20, 40)) == rest
+    assert first  # the first half trained too (κ = 8: two rounds)
+    for a, b in zip(straight.model.get_weights(), restored.model.get_weights(), strict=True):
+        assert np.array_equal(a, b)
+    assert straight.n_training_rounds == restored.n_training_rounds == 5
+
+
+def test_resume_without_a_checkpoint_is_one_line(tmp_path):
+    one_error_line(run("--uc", "1", "--out", tmp_path / "run", *SMALL, "--resume"),
+                   "--resume", "no checkpoint")
+
+
+def test_resume_with_other_options_is_one_line_and_keeps_the_checkpoint(tmp_path):
+    out = tmp_path / "run"
+    saved = checkpoint_folder(out) / CHECKPOINT_FILE
+    process = start("--uc", "1", "--out", out, *SMALL, "--checkpoint-every-s", "0")
+    wait_for(lambda: saved.is_file() or process.poll() is not None)
+    process.send_signal(signal.SIGTERM)
+    process.communicate(timeout=120)
+    kept = snapshot(checkpoint_folder(out))
+    one_error_line(run("--uc", "1", "--seed", "7", "--out", out, *SMALL, "--resume"),
+                   "--resume", "another configuration")
+    assert snapshot(checkpoint_folder(out)) == kept
+
+
+def test_a_foreign_folder_with_the_checkpoint_name_is_refused_and_kept(tmp_path):
+    out = tmp_path / "run"
+    foreign = checkpoint_folder(out)
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    one_error_line(run("--uc", "1", "--out", out, *SMALL), "not a yafs-safetail checkpoint")
+    assert (foreign / "notes.txt").read_text() == "mine" and not out.exists()
+
+
+def test_a_truncated_checkpoint_is_one_line(tmp_path):
+    out = tmp_path / "run"
+    folder = checkpoint_folder(out)
+    folder.mkdir()
+    (folder / checkpoint_module.CHECKPOINT_MARKER).touch()
+    (folder / CHECKPOINT_FILE).write_bytes(pickle.dumps((1, "x"))[:5])
+    one_error_line(run("--uc", "1", "--out", out, *SMALL, "--resume"), "not a readable checkpoint")
+
+
+def test_resume_needs_a_training_run(tmp_path):
+    one_error_line(run("--uc", "1", "--out", tmp_path / "run", *SMALL, "--yafs-csv", "--resume"),
+                   "--resume", "--yafs-csv")

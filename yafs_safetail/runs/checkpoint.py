@@ -1,0 +1,136 @@
+"""Training checkpoints: where an interrupted run's SafeTail training stood, for ``--resume``.
+
+While SafeTail trains, the run writes a checkpoint beside its target folder,
+``.<target>.checkpoint/``, at most every ``checkpoint_every_s`` seconds and once more when
+training ends. It holds the learner's whole training state (weights, Adam's slots, replay
+buffer, counters, random generators), the training records so far and the next step. A
+checkpoint is taken only between two requests with no copy running, so a fresh simulation
+started at that step continues the interrupted one exactly: a resumed run writes the same
+results files as an uninterrupted one.
+
+The checkpoint belongs to one configuration (the campaign run id of its settings and code
+version, :func:`yafs_safetail.runs.grid.config_run_id`); ``--resume`` with any other refuses.
+The folder carries a marker file, and only a folder with the marker is ever replaced or
+removed; it is removed when the run's results are in place.
+
+The state is a pickle: it is read back only from a folder this tool made (the marker), by the
+same code version, never from elsewhere.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from yafs_safetail.record import RequestRecord
+from yafs_safetail.runs.output import OutputError
+
+#: The marker file inside every checkpoint folder this tool made.
+CHECKPOINT_MARKER = ".yafs-safetail-checkpoint"
+CHECKPOINT_FILE = "training.pickle"
+#: Bumped when the checkpoint's contents change: an older checkpoint is refused, not misread.
+CHECKPOINT_FORMAT = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be resumed (one line naming it and why)."""
+
+
+@dataclass
+class TrainingCheckpoint:
+    """Where training stood between two requests.
+
+    Attributes:
+        run_id: the configuration's identity (:func:`yafs_safetail.runs.grid.config_run_id`).
+        next_step: the training world's step of the next request.
+        learner_state: :meth:`SafeTailLearner.training_state`.
+        records: the training phase's records of steps ``0 .. next_step - 1``.
+        decision_time_s: the policy's decision time so far (timings only).
+        training_time_s: the policy's training time so far (timings only).
+    """
+
+    run_id: str
+    next_step: int
+    learner_state: dict[str, Any]
+    records: list[RequestRecord] = field(default_factory=list)
+    decision_time_s: float = 0.0
+    training_time_s: float = 0.0
+
+
+def checkpoint_folder(target: Path) -> Path:
+    """The checkpoint folder of a run whose results go to ``target`` (beside it)."""
+    return target.parent / f".{target.name}.checkpoint"
+
+
+def _check_ours(folder: Path, option: str) -> None:
+    if (folder.exists() or folder.is_symlink()) and not (
+            folder.is_dir() and not folder.is_symlink() and (folder / CHECKPOINT_MARKER).is_file()):
+        raise OutputError(f"{option}: {folder} exists and is not a yafs-safetail checkpoint; "
+                          "move it away or choose another folder")
+
+
+def check_checkpoint_place(target: Path, option: str = "--out") -> None:
+    """Refuse (OutputError) a run whose checkpoint folder's name is taken by something else."""
+    _check_ours(checkpoint_folder(target), option)
+
+
+def write_checkpoint(target: Path, checkpoint: TrainingCheckpoint) -> None:
+    """Write (or replace) the checkpoint of the run going to ``target``, atomically: a reader
+    sees the previous checkpoint or this one, never part of one."""
+    folder = checkpoint_folder(target)
+    _check_ours(folder, "--out")
+    folder.mkdir(exist_ok=True)
+    (folder / CHECKPOINT_MARKER).touch()
+    handle, temporary = tempfile.mkstemp(prefix=".training-", suffix=".partial", dir=folder)
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            pickle.dump((CHECKPOINT_FORMAT, checkpoint), stream, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(temporary, folder / CHECKPOINT_FILE)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def read_checkpoint(target: Path, run_id: str) -> TrainingCheckpoint:
+    """The checkpoint of the interrupted run going to ``target``.
+
+    Raises:
+        CheckpointError: none there, unreadable, of another format or of another configuration.
+    """
+    folder = checkpoint_folder(target)
+    path = folder / CHECKPOINT_FILE
+    if not (folder / CHECKPOINT_MARKER).is_file() or not path.is_file():
+        raise CheckpointError(f"--resume: no checkpoint of an interrupted run for {target} "
+                              f"(looked for {path}); run without --resume")
+    try:
+        with path.open("rb") as stream:
+            version, checkpoint = pickle.load(stream)
+    except Exception as error:  # a truncated or foreign file: pickle raises many kinds
+        raise CheckpointError(f"--resume: {path} is not a readable checkpoint "
+                              f"({type(error).__name__}); run without --resume") from None
+    if version != CHECKPOINT_FORMAT or not isinstance(checkpoint, TrainingCheckpoint):
+        raise CheckpointError(f"--resume: {path} was written by another version of the tool; "
+                              "run without --resume")
+    if checkpoint.run_id != run_id:
+        raise CheckpointError(
+            f"--resume: {path} is of another configuration or code version (run id "
+            f"{checkpoint.run_id}, this run {run_id}); give the interrupted run's options, or "
+            "run without --resume")
+    return checkpoint
+
+
+def has_checkpoint(target: Path) -> bool:
+    """Whether an interrupted run left a checkpoint for ``target``."""
+    return (checkpoint_folder(target) / CHECKPOINT_MARKER).is_file()
+
+
+def discard_checkpoint(target: Path) -> None:
+    """Remove the checkpoint folder of ``target``'s run (only if this tool made it)."""
+    folder = checkpoint_folder(target)
+    if folder.is_dir() and not folder.is_symlink() and (folder / CHECKPOINT_MARKER).is_file():
+        shutil.rmtree(folder, ignore_errors=True)
