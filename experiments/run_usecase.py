@@ -87,6 +87,13 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     parser.add_argument("--step-interval-s", type=positive_float, default=DEFAULT_STEP_INTERVAL_S,
                         help=f"simulated time between two requests, one load-trace row "
                              f"(default {DEFAULT_STEP_INTERVAL_S:g})")
+    parser.add_argument("--target-latency-s", type=positive_float, default=None,
+                        help="a fixed target latency for every request, in seconds (default: "
+                             "Eq. 4's per-request heuristic, as in the paper)")
+    parser.add_argument("--load-peak-users", type=non_negative_float, default=None,
+                        help="load level: background users on a server at its busiest minute "
+                             "(0 = idle, 4 = full at the peak; default: the preset world's, "
+                             "recorded in run.json)")
     parser.add_argument("--workers", type=positive_int, default=2,
                         help="processes: the baselines are tested in workers-1 other processes "
                              "while SafeTail trains (default 2; 1 = one process; same results)")
@@ -114,6 +121,7 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
         overwrite=args.overwrite, force=args.force, step_interval_s=args.step_interval_s,
         resume=args.resume, checkpoint_every_s=args.checkpoint_every_s,
+        target_latency_s=args.target_latency_s, load_peak_users=args.load_peak_users,
     )
 
 

@@ -295,3 +295,45 @@ def test_output_under_a_read_only_folder(tmp_path):
         locked.chmod(0o755)
     assert_one_error_line(done, "--out", "not writable")
     assert snapshot(locked / "run") == kept
+
+
+def test_target_latency_and_load_level_options(tmp_path):
+    out = tmp_path / "fixed"
+    done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
+                      "--target-latency-s", "0.75", "--load-peak-users", "0")
+    assert done.returncode == 0, done.stderr
+    rows = pd.read_csv(out / "requests.csv")
+    assert (rows["target_s"] == 0.75).all()
+    # Idle servers: one request's copies never fill a server, so nothing is ever refused.
+    assert not rows["refused"].any() and not rows["fallback"].any()
+    world = json.loads((out / "run.json").read_text())["world"]
+    assert world["target_latency_s"] == 0.75 and world["load_peak_users"] == 0
+    # The default: Eq. 4 per request (targets vary) and the preset world's load.
+    default = pd.read_csv(tmp_path_run_default(tmp_path) / "requests.csv")
+    assert default["target_s"].nunique() > 1 and default["refused"].any()
+
+
+def tmp_path_run_default(tmp_path: Path) -> Path:
+    out = tmp_path / "default"
+    done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--target-latency-s", "0"], "--target-latency-s"),
+    (["--target-latency-s", "nan"], "--target-latency-s"),
+    (["--load-peak-users", "-1"], "--load-peak-users"),
+])
+def test_bad_target_or_load_is_one_line(tmp_path, args, fragment):
+    done = run_script("--uc", "1", "--out", tmp_path / "run", *TINY, *args)
+    assert done.returncode == 2 and len(done.stderr.splitlines()) == 1, done.stderr
+    assert fragment in done.stderr and not (tmp_path / "run").exists()
+
+
+def test_an_out_of_range_setting_in_a_config_is_one_line(tmp_path):
+    from yafs_safetail.runs.experiment import ExperimentConfig, ExperimentError, run_experiment
+
+    with pytest.raises(ExperimentError, match="--target-latency-s"):
+        run_experiment(ExperimentConfig(out_dir=tmp_path / "run", target_latency_s=float("inf")))
+    assert not (tmp_path / "run").exists()

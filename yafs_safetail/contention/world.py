@@ -264,8 +264,10 @@ class ContentionWorld:
         if self._per_user:
             users = self.user[index * size:index * size + n_steps]
             self._block_rtt_s = self._user_rtt_s(world, phase, users)
-            # τ (Eq. 4) from each request's user's ρ^μ_i, for the whole block at once.
-            self._block_target_s = np.asarray(target_latency_s(
+            # τ (Eq. 4) from each request's user's ρ^μ_i, for the whole block at once (a fixed
+            # τ of the settings needs no per-user value).
+            self._block_target_s = world.target_s if self.settings.target_latency_s is not None \
+                else np.asarray(target_latency_s(
                 world.input_bytes, world.est_output_bytes, world.user_uplink_bps, world.user_downlink_bps,
                 self.user_median_propagation_s[users], world.median_compute_s), dtype=float)
         else:

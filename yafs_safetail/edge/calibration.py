@@ -70,6 +70,8 @@ class WorldSettings:
             case's median one-process compute time; None: the landed rule (the use case's
             fixed bound, raised to the topology's worst-case edge latency).
         nu: ν of Eq. 4 for every use case; None: the use case's own (the knee rule).
+        target_latency_s: a fixed target latency τ for every request (``--target-latency-s``);
+            None: Eq. 4's heuristic per request (the paper).
     """
 
     name: str = "landed"
@@ -79,18 +81,21 @@ class WorldSettings:
     bandwidth_share_exponent: float = 0.0
     fallback_compute_multiple: float | None = None
     nu: int | None = None
+    target_latency_s: float | None = None
 
     def __post_init__(self) -> None:
         checks = {
             "propagation_rtt_fraction": 0.0 < self.propagation_rtt_fraction <= 1.0,
             "load_start": self.load_start in LOAD_STARTS,
-            "load_peak_users": math.isfinite(self.load_peak_users) and self.load_peak_users > 0,
+            "load_peak_users": math.isfinite(self.load_peak_users) and self.load_peak_users >= 0,
             "bandwidth_share_exponent": math.isfinite(self.bandwidth_share_exponent)
             and 0.0 <= self.bandwidth_share_exponent <= 2.0,
             "fallback_compute_multiple": self.fallback_compute_multiple is None
             or (math.isfinite(self.fallback_compute_multiple) and self.fallback_compute_multiple > 0),
             "nu": self.nu is None or (isinstance(self.nu, int) and not isinstance(self.nu, bool)
                                       and 1 <= self.nu <= 5),
+            "target_latency_s": self.target_latency_s is None
+            or (math.isfinite(self.target_latency_s) and self.target_latency_s > 0),
         }
         bad = [name for name, ok in checks.items() if not ok]
         if bad:

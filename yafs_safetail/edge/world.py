@@ -405,7 +405,8 @@ def build_world(
         median_compute_s=median_compute_s,
         target_s=np.asarray(target_latency_s(
             requests.input_bytes, requests.est_output_bytes, user_uplink_bps, user_downlink_bps,
-            median_propagation_s[None, :], median_compute_s), dtype=float),
+            median_propagation_s[None, :], median_compute_s), dtype=float)
+        if settings.target_latency_s is None else np.full(n_steps, settings.target_latency_s),
         fallback_latency_s=fallback_latency_s,
         nu=nu,
         settings=settings,

@@ -20,6 +20,7 @@ delay hooks and writes the YAFS result CSVs under ``yafs/``.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
 import os
@@ -34,7 +35,7 @@ import pandas as pd
 
 import yafs_safetail
 from yafs_safetail import results
-from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.calibration import CalibrationError, WorldSettings, world_settings
 from yafs_safetail.edge.inputs import load_scenario_for
 from yafs_safetail.edge.scenario import (
     DEFAULT_PLACEMENT,
@@ -109,6 +110,10 @@ class ExperimentConfig:
             forked processes while this one trains SafeTail (1: everything here). The
             results do not depend on it.
         world: the world settings; None: the preset's world (:data:`PRESET_WORLDS`).
+        target_latency_s: a fixed target latency τ for every request instead of Eq. 4's
+            heuristic (``--target-latency-s``); None: Eq. 4 (the paper).
+        load_peak_users: the load level: background users on a server at its load device's
+            busiest minute (0 = idle servers, 4 = full at the peak); None: the world's own.
         overwrite: replace an earlier results folder at ``out_dir`` (``--overwrite``).
         force: run a budget beyond the disk and memory limits (``--force``).
         run_id: the campaign's identifier of this configuration (``runs.campaign``), recorded
@@ -138,6 +143,8 @@ class ExperimentConfig:
     command: str = ""
     workers: int = 2
     world: WorldSettings | None = None
+    target_latency_s: float | None = None
+    load_peak_users: float | None = None
     overwrite: bool = False
     force: bool = False
     run_id: str = ""
@@ -215,6 +222,14 @@ def _check(config: ExperimentConfig) -> _Inputs:
     n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
     check_budget(config, base, learner_config, test_steps, n_methods)
     settings = config.world or world_settings(PRESET_WORLDS[config.preset])
+    for name in ("target_latency_s", "load_peak_users"):  # the run's own options over the world's
+        value = getattr(config, name)
+        if value is None:
+            continue
+        try:
+            settings = dataclasses.replace(settings, **{name: value})
+        except CalibrationError:
+            raise ExperimentError(f"--{name.replace('_', '-')}: {value!r} is out of range") from None
 
     def world(phase: str, n_steps: int) -> EdgeWorld:
         return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
