@@ -203,7 +203,20 @@ def test_a_large_forced_budget_warns_about_the_disk(capsys):
     full = get_preset("paper", 1)
     big = get_preset("paper", 1, train_steps=2_000_000)
     check_budget(ExperimentConfig(steps_scale=200, force=True, write_yafs_csv=True), full, big, 800_000, 11)
-    assert "warning: --steps-scale 200 will write about" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "warning: --steps-scale 200 will write about" in err
+    # 2e6 training requests, 2e6 + 8.8e6 request rows at the measured speeds: about 41 min.
+    assert "warning: --steps-scale 200 will take about 41 min" in err
+
+
+def test_a_default_budget_gives_no_warning(capsys):
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.runs.budget import check_budget
+    from yafs_safetail.runs.experiment import ExperimentConfig
+
+    full = get_preset("paper", 1)
+    check_budget(ExperimentConfig(), full, full, full.test_steps, 11)
+    assert capsys.readouterr().err == ""
 
 
 def test_bad_policy_files_and_slow_links_are_one_line_errors(tmp_path):

@@ -2,7 +2,10 @@
 
 The per-request sizes were measured on the default UC1 run (54,000 request rows: requests.csv
 9.5 MB, YAFS CSVs 69 MB); the memory per step is the pre-drawn world (1.1 kB per step) plus the
-records held until they are written.
+records held until they are written. The times per request were measured on the same run in one
+process (``--workers 1``) on a 2-core machine: 10,000 training requests took 5.4 s of learner
+time, 54,000 simulated requests 5.5 s and their writing 1.7 s; a warning gives the estimate when
+it exceeds ``WARN_SECONDS``.
 """
 
 from __future__ import annotations
@@ -28,6 +31,9 @@ MEMORY_BYTES_PER_STEP = 3_000
 MAX_DISK_BYTES = 10e9
 WARN_DISK_BYTES = 1e9
 MAX_MEMORY_BYTES = 4e9
+SECONDS_PER_TRAINING_STEP = 5.4e-4
+SECONDS_PER_ROW = 1.3e-4
+WARN_SECONDS = 600.0
 #: Fewer test requests than this give percentiles that mean nothing.
 MIN_TEST_STEPS = 10
 
@@ -50,12 +56,21 @@ def check_budget(config: ExperimentConfig, full: LearnerConfig, learner: Learner
     rows = train_steps + test_steps * n_methods
     disk_bytes = rows * (REQUESTS_CSV_BYTES_PER_ROW + (YAFS_CSV_BYTES_PER_ROW if config.write_yafs_csv else 0))
     memory_bytes = (train_steps + test_steps) * MEMORY_BYTES_PER_STEP
+    hours = estimated_seconds(train_steps, rows) / 3600
     if not config.force and (disk_bytes > MAX_DISK_BYTES or memory_bytes > MAX_MEMORY_BYTES):
         raise BudgetError(
             f"{scale}: about {disk_bytes / 1e9:.1f} GB of results and {memory_bytes / 1e9:.1f} GB of "
-            f"memory (limits {MAX_DISK_BYTES / 1e9:g} GB and {MAX_MEMORY_BYTES / 1e9:g} GB); "
-            "pass --force to run it anyway"
+            f"memory (limits {MAX_DISK_BYTES / 1e9:g} GB and {MAX_MEMORY_BYTES / 1e9:g} GB) and "
+            f"about {hours:.1f} h; pass --force to run it anyway"
         )
     if disk_bytes > WARN_DISK_BYTES:
         print(f"warning: {scale} will write about {disk_bytes / 1e9:.1f} GB into {config.out_dir}",
               file=sys.stderr)
+    if hours * 3600 > WARN_SECONDS:
+        print(f"warning: {scale} will take about {hours * 60:.0f} min (one process; measured "
+              "speeds, docs/results.md)", file=sys.stderr)
+
+
+def estimated_seconds(train_steps: int, rows: int) -> float:
+    """Wall time of a run's training and simulations at the measured speeds (one process)."""
+    return train_steps * SECONDS_PER_TRAINING_STEP + rows * SECONDS_PER_ROW
