@@ -14,7 +14,9 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+from test_run_usecase import earlier_results
 
 from yafs_safetail.runs.experiment import REPOSITORY
 from yafs_safetail.runs.output import OutputError, check_target, is_results_folder, refuse_protected
@@ -289,3 +291,64 @@ def test_an_empty_file_named_like_the_lock_is_not_taken(tmp_path):
     done = run("--uc", "1", "--out", tmp_path / "run", *TINY)
     one_error_line(done, ".run.lock", "not a yafs-safetail lock")
     assert mine.is_file() and mine.read_text() == "" and not (tmp_path / "run").exists()
+
+
+def test_a_publish_killed_between_its_renames_loses_nothing(tmp_path, monkeypatch):
+    from yafs_safetail.runs import output
+
+    target = tmp_path / "run"
+    kept = earlier_results(target)
+    renames = []
+    real_replace = os.replace
+
+    def replace_then_die(src, dst):  # type: ignore[no-untyped-def]
+        real_replace(src, dst)
+        renames.append(dst)
+        if len(renames) == 1:  # the earlier run is aside, the new one not yet in place
+            raise KeyboardInterrupt
+
+    staged = output.StagedOutput(target, overwrite=True)
+    with pytest.raises(KeyboardInterrupt):
+        with staged as staging:
+            (staging / "run.json").write_text("{}")
+            (staging / "requests.csv").write_text("new\n")
+            monkeypatch.setattr(output.os, "replace", replace_then_die)
+            staged.publish()
+    monkeypatch.setattr(output.os, "replace", real_replace)
+    assert not target.exists()  # the kill's window: the earlier run is aside
+    # The next run on the target (even one that fails) puts the earlier run back first.
+    with pytest.raises(OutputError, match="holds an earlier run"):
+        with output.StagedOutput(tmp_path / "run", overwrite=False):
+            pass
+    assert snapshot(target) == kept
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_sigkill_at_random_points_never_loses_the_earlier_run(tmp_path):
+    # Fault injection: a run replacing an earlier one (--overwrite) is killed outright at
+    # seeded random moments from start-up to the end. Whatever the moment, the target holds
+    # the earlier run or the complete new one, and the next run leaves nothing else behind.
+    target = tmp_path / "run"
+    kept = earlier_results(target)
+    args = ("--uc", "1", "--out", target, "--overwrite", *TINY, "--workers", "2",
+            "--checkpoint-every-s", "0")
+    started = time.monotonic()
+    timing = run("--uc", "1", "--out", tmp_path / "timing", *TINY)
+    assert timing.returncode == 0, timing.stderr
+    full_s = time.monotonic() - started
+    for delay_s in np.random.default_rng(2026).uniform(0.2, 1.1 * full_s, size=4):
+        process = start(*args)
+        time.sleep(delay_s)
+        process.kill()
+        process.communicate(timeout=60)
+        if not target.exists():  # killed between publish's two renames: the earlier run is aside
+            aside = list(tmp_path.glob(".run.previous-*/run"))
+            assert len(aside) == 1 and snapshot(aside[0]) == kept, f"killed after {delay_s:.2f} s"
+            continue  # the next run puts it back first
+        if is_results_folder(target) and snapshot(target) != kept:
+            break  # the run finished before the kill: the new results are complete
+        assert snapshot(target) == kept, f"killed after {delay_s:.2f} s"
+    done = run(*args)
+    assert done.returncode == 0, done.stderr
+    assert is_results_folder(target) and snapshot(target) != kept
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run", "timing"]

@@ -11,7 +11,10 @@ Whatever happens, the temporary folder is removed and the lock released; the tem
 folder of a run killed outright (SIGKILL) is removed by the next run on the same target. Only
 what carries this tool's marker is ever removed: a lock file starting with ``LOCK_MARKER``, a
 temporary folder holding ``STAGING_MARKER``; an earlier results folder goes only with
-``overwrite``, after the new one is in place.
+``overwrite``, after the new one is in place. Replacing it takes two renames (the earlier run
+aside into ``.NAME.previous-XXXX``, marked ``PREVIOUS_MARKER``, then the new one into place); a
+run killed between them leaves the earlier run aside, and the next run on the target puts it
+back before anything else.
 """
 
 from __future__ import annotations
@@ -81,6 +84,7 @@ def check_target(folder: Path, overwrite: bool, option: str = "--out") -> Path:
 #: this tool makes: only files and folders carrying them are ever removed.
 LOCK_MARKER = "yafs-safetail run lock"
 STAGING_MARKER = ".yafs-safetail-partial"
+PREVIOUS_MARKER = ".yafs-safetail-previous"
 _LOCK_ATTEMPTS = 100
 
 
@@ -165,6 +169,7 @@ class StagedOutput:
             raise OSError(f"{self.option} {self.out_dir}: {parent} is not writable")
         with self._stack:
             self._stack.enter_context(_lock(self.target, self.option))
+            self._recover_previous()
             check_target(self.out_dir, self.overwrite, self.option)  # again, now that it is ours
             # Temporary folders of earlier runs on this target that were killed outright
             # (SIGKILL, power loss): this tool made them, and no run can be using them now.
@@ -179,6 +184,18 @@ class StagedOutput:
             self._stack = self._stack.pop_all()
         return self.staging
 
+    def _recover_previous(self) -> None:
+        """Undo a publish killed between its two renames: the earlier run, moved aside, goes
+        back into place (nothing is lost); the aside folder of a finished publish goes."""
+        target = self.target
+        for aside in target.parent.glob(f".{target.name}.previous-*"):
+            if not (aside / PREVIOUS_MARKER).is_file():
+                continue  # not made by this tool: leave it
+            earlier = aside / target.name
+            if earlier.is_dir() and not (target.exists() or target.is_symlink()):
+                os.replace(earlier, target)
+            shutil.rmtree(aside, ignore_errors=True)
+
     def publish(self) -> None:
         """Rename the finished run into place; an earlier run there goes only after that."""
         assert self.staging is not None
@@ -187,6 +204,9 @@ class StagedOutput:
         previous = None
         if target.exists():
             previous = Path(tempfile.mkdtemp(prefix=f".{target.name}.previous-", dir=target.parent))
+            # A kill before the next rename completes leaves the earlier run here; the next
+            # run on this target puts it back (_recover_previous).
+            (previous / PREVIOUS_MARKER).touch()
             os.replace(target, previous / target.name)
         (self.staging / STAGING_MARKER).unlink()
         os.replace(self.staging, target)
