@@ -136,3 +136,25 @@ def test_ray_engine_writes_the_same_bytes_as_the_local_engine(uncut, tmp_path: P
     assert result.failed == 0, [r.error for r in result.runs]
     for spec in specs:
         assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name
+
+
+def test_a_two_node_ray_cluster_writes_the_same_bytes(uncut, tmp_path: Path) -> None:
+    # Two Ray nodes (two raylets) on this machine with one CPU each: with two runs at a time
+    # each node must take one, so the folders really travel back from another node.
+    pytest.importorskip("ray", reason="Ray is not installed (pip install -e .[ray]); the local "
+                                      "engine is tested without it")
+    from ray.cluster_utils import Cluster
+
+    reference, specs, _, _ = uncut
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    try:
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        out = tmp_path / "ray-cluster"
+        result = run_campaign(specs, out, ray_address=cluster.address, workers=2, stream=io.StringIO())
+        assert result.failed == 0, [r.error for r in result.runs]
+        for spec in specs:
+            assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name
+        assert len({run.node for run in result.runs}) == 2, [run.node for run in result.runs]
+    finally:
+        cluster.shutdown()

@@ -51,6 +51,7 @@ class RunState:
     status: str = QUEUED
     wall_s: float = 0.0
     error: str = ""
+    node: str = ""  # the Ray node that ran it (shown in the progress line; not in campaign.json)
 
 
 @dataclass
@@ -215,11 +216,12 @@ def _execute(queue: list[RunState], out: Path, runner: Any, command: str, overwr
             for handle in done:
                 state, task = pending.pop(handle)
                 outcome: RunResult = runner.result(handle, task)
-                state.wall_s, state.error = outcome.wall_s, outcome.error
+                state.wall_s, state.error, state.node = outcome.wall_s, outcome.error, outcome.node
                 if not outcome.error and recorded_run_id(out / state.spec.name) != state.spec.run_id:
                     state.error = "finished, but its folder does not record its run id"
                 state.status = FAILED if state.error else DONE
-                progress.line(f"{state.status} {state.spec.name} ({state.wall_s:.1f} s)"
+                where = f" on node {state.node}" if state.node else ""
+                progress.line(f"{state.status} {state.spec.name} ({state.wall_s:.1f} s{where})"
                               + (f": {state.error}" if state.error else ""))
             _write_state(out, states, command)
         interrupted = False

@@ -56,6 +56,7 @@ class RunResult:
     error: str
     wall_s: float
     archive: bytes | None = None  # the run's folder as a tar archive (Ray only)
+    node: str = ""  # the Ray node that ran it (its id's first 8 hex digits); empty locally
 
 
 def one_line(error: BaseException) -> str:
@@ -146,11 +147,14 @@ class LocalEngine:
 
 def _execute_and_pack(task: RunTask) -> RunResult:
     """On a Ray node: run into a private temporary folder and return it as a tar archive."""
+    import ray
+
     _init_worker()
     scratch = Path(tempfile.mkdtemp(prefix="yafs-safetail-run-"))
     try:
         folder = scratch / Path(task.spec.name).name
-        result = execute(replace(task, out_dir=str(folder), overwrite=False))
+        result = replace(execute(replace(task, out_dir=str(folder), overwrite=False)),
+                         node=ray.get_runtime_context().get_node_id()[:8])
         if result.error:
             return result
         buffer = io.BytesIO()
