@@ -63,7 +63,10 @@ from yafs_safetail.results.paper import (
 )
 from yafs_safetail.results.report import (
     aggregate_markdown,
+    aggregate_table,
     comparison_markdown,
+    comparison_table,
+    frame_markdown,
     summary_markdown,
     write_results,
     write_summary,
@@ -120,6 +123,7 @@ __all__ = [
     "abs_reward_by_episode",
     "access_rate_by_episode",
     "aggregate_markdown",
+    "aggregate_table",
     "aggregate_speedups",
     "aggregate_summaries",
     "baselines_of",
@@ -127,7 +131,9 @@ __all__ = [
     "bootstrap_interval",
     "check_claims",
     "comparison_markdown",
+    "comparison_table",
     "file_mode",
+    "frame_markdown",
     "geometric_interval",
     "in_calibration_subset",
     "latency_deviation_by_episode",
