@@ -5,7 +5,8 @@
 * ``stats``: summaries, speed-ups, β-step averages, intervals over seeds;
 * ``paper``: the paper's published ratios and claims, ours beside them;
 * ``report``: markdown reports and the writers of a run's folder;
-* ``fidelity``: the scorecard of every published number against ours.
+* ``fidelity``: the scorecard of every published number against ours;
+* ``latex``: the report's tables as LaTeX files (``DataFrame.to_latex``).
 
 The public names of the first four are re-exported here (``results.summarize``, ...).
 """
