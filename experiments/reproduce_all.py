@@ -13,8 +13,11 @@ subset and held-out numbers apart; also in ``OUT/fidelity.csv`` and the figure
 ``OUT/fidelity-<preset>.png``) and gives, per use case and preset: the latency table (mean over
 seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones with a plain
 note where they differ, what the learner did (training rounds, final ε, servers used, target
-met, fallbacks) as the first place to look for why, and the figures of the first seed.
-Seeds must be distinct; the scorecard asks for at least five.
+met, fallbacks) as the first place to look for why, figures across seeds with 95% bands
+(``OUT/figures/uc<N>-<preset>-latency-bands`` and ``-servers-bands``, PNG and PDF) and the
+figures of the first seed. Every table of the report is also written as LaTeX
+(``OUT/tables/*.tex``, listed at the end of REPORT.md). Seeds must be distinct; the scorecard
+asks for at least five.
 
 The runs form one campaign (yafs_safetail/runs/campaign.py): rerunning the same command on the
 same --out resumes an interrupted reproduction and recomputes no finished run (a run folder
@@ -38,8 +41,13 @@ from yafs_safetail.cli import ArgumentParser, distinct_int_list, run_cli
 from yafs_safetail.edge.calibration import CalibrationError, read_calibration
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
+from yafs_safetail.figures_multiseed import (
+    LATENCY_BANDS_STEM,
+    SERVERS_BANDS_STEM,
+    draw_multiseed_figures,
+)
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
-from yafs_safetail.results import fidelity
+from yafs_safetail.results import fidelity, latex
 from yafs_safetail.runs.campaign import add_engine_options, engine_free_command, run_campaign
 from yafs_safetail.runs.experiment import ExperimentError
 from yafs_safetail.runs.grid import expand
@@ -80,21 +88,25 @@ def _calibration_seed_note(seeds: Sequence[int]) -> str:
             "on them the calibration-subset numbers are not independent of the fit.")
 
 
-def _learner_diagnostics(folders: Sequence[Path]) -> list[str]:
-    """What SafeTail did in each seed: the first place to look when a ratio differs."""
-    lines = ["| seed | training rounds | final ε | SafeTail servers used (test: mean, min-max) "
-             "| target met (test) | fallbacks (test) |", "|---|---|---|---|---|---|"]
+def _learner_diagnostics(folders: Sequence[Path]) -> pd.DataFrame:
+    """What SafeTail did in each seed: the first place to look when a ratio differs.
+
+    Display strings, one row per seed (REPORT.md and its LaTeX twin are made from it).
+    """
+    header = ["seed", "training rounds", "final ε", "SafeTail servers used (test: mean, min-max)",
+              "target met (test)", "fallbacks (test)"]
+    rows = []
     for folder in folders:
         run = results.read_run_json(folder)
         summary = results.read_summary_csv(folder)
         row = summary[summary["method"] == results.SAFETAIL].iloc[0]
-        lines.append(
-            f"| {run.seed} | {run.extra.get('training_rounds', '?')} "
-            f"| {float(run.extra.get('final_epsilon', float('nan'))):.3f} "
-            f"| {row['mean_n_selected']:.2f} ({int(row['min_n_selected'])}-{int(row['max_n_selected'])}) "
-            f"| {row['target_met_rate']:.1%} | {row['fallback_rate']:.1%} |"
-        )
-    return lines
+        rows.append([
+            str(run.seed), str(run.extra.get("training_rounds", "?")),
+            f"{float(run.extra.get('final_epsilon', float('nan'))):.3f}",
+            f"{row['mean_n_selected']:.2f} ({int(row['min_n_selected'])}-{int(row['max_n_selected'])})",
+            f"{row['target_met_rate']:.1%}", f"{row['fallback_rate']:.1%}",
+        ])
+    return pd.DataFrame(rows, columns=header, dtype=object)
 
 
 #: A baseline that falls back on more than this share of requests has fallback-set tails.
@@ -141,10 +153,43 @@ def _why_lines(folders: Sequence[Path]) -> list[str]:
     return lines
 
 
-def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Path) -> list[str]:
+#: Every table REPORT.md shows, as a LaTeX file under OUT/tables/ (results/latex.py).
+TABLE_NAMES = {
+    "latency": "latency-uc{use_case}-{preset}",
+    "ratios": "ratios-uc{use_case}-{preset}",
+    "learner": "learner-uc{use_case}-{preset}",
+    "scorecard": "fidelity-{preset}-{part}",
+}
+
+
+def _tex_pointer(*names: str) -> str:
+    """REPORT.md's line naming a table's LaTeX file(s) (OUT/tables/ is beside REPORT.md)."""
+    links = [f"[`{latex.TABLES_DIR}/{n}{latex.TABLE_SUFFIX}`]({latex.TABLES_DIR}/{n}{latex.TABLE_SUFFIX})"
+             for n in names]
+    return "LaTeX: " + ", ".join(links)
+
+
+def _section(use_case: int, preset: str, folders: Sequence[Path],
+             report_dir: Path) -> tuple[list[str], dict[str, str]]:
+    """One use case and preset: REPORT.md's lines and the LaTeX tables (name -> source)."""
     run = results.read_run_json(folders[0])
     stats = results.aggregate_summaries(folders)
     ratios = results.aggregate_speedups(folders)
+    diagnostics = _learner_diagnostics(folders)
+    names = {key: TABLE_NAMES[key].format(use_case=use_case, preset=preset)
+             for key in ("latency", "ratios", "learner")}
+    tables = {
+        names["latency"]: latex.latency_latex(stats, use_case=use_case,
+                                              use_case_name=run.use_case_name, preset=preset),
+        names["ratios"]: latex.comparison_latex(ratios, use_case=use_case, preset=preset),
+        names["learner"]: latex.table_latex(
+            diagnostics, label=f"tab:learner-uc{use_case}-{preset}", column_format="rrrrrr",
+            caption=f"Use case {use_case}, preset {preset}: what SafeTail did in each seed "
+                    "(training rounds, final ε, servers per request, target met and fallbacks "
+                    "in the test phase)."),
+    }
+    # The bands over seeds go beside the report (OUT/figures), not into a run's folder.
+    draw_multiseed_figures(folders, report_dir / FIGURES_DIR)
     figures_dir = folders[0] / FIGURES_DIR
     lines = [
         f"## Use case {use_case}: {run.use_case_name} — preset `{preset}`",
@@ -157,27 +202,38 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
         "",
         results.aggregate_markdown(stats).rstrip("\n"),
         "",
+        _tex_pointer(names["latency"]),
+        "",
         "### Our ratios beside the paper's",
         "",
         results.comparison_markdown(ratios).rstrip("\n"),
         "",
+        _tex_pointer(names["ratios"]),
+        "",
         "### What SafeTail did",
         "",
-        *_learner_diagnostics(folders),
+        *results.frame_markdown(diagnostics),
+        "",
+        _tex_pointer(names["learner"]),
         "",
         "### Why our ratios may differ (read off these runs)",
         "",
         *_why_lines(folders),
         "",
-        f"### Figures (seed {run.seed})",
+        "### Across seeds (mean, shaded 95% bootstrap interval over seeds)",
         "",
     ]
+    for stem, caption in ((LATENCY_BANDS_STEM, "latency percentiles per method"),
+                          (SERVERS_BANDS_STEM, "SafeTail's servers per request over time")):
+        png = Path(FIGURES_DIR) / f"{stem.format(use_case=use_case, preset=preset)}.png"
+        lines += [f"{caption}: ![{caption}]({png}) (also `.pdf`)", ""]
+    lines += [f"### Figures (seed {run.seed})", ""]
     for panel, stem, caption in FIGURE_STEMS:
         png = figures_dir / f"{stem}.png"
         if png.is_file():
             lines.append(f"({panel}) {caption}: ![{caption}]({os.path.relpath(png, report_dir)})")
             lines.append("")
-    return lines
+    return lines, tables
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -215,13 +271,16 @@ def main(argv: Sequence[str] | None = None) -> int:
               "same command to retry them (finished runs are kept)", file=sys.stderr)
         return 1
     sections: list[str] = []
+    section_tables: dict[str, str] = {}
     speedups = []
     summaries: dict[str, dict[int, list[pd.DataFrame]]] = {p: {} for p in args.preset}
     for use_case in args.uc:
         for preset in args.preset:
             folders = [args.out / RUN_FOLDER.format(use_case=use_case, preset=preset, seed=seed)
                        for seed in args.seeds]
-            sections += _section(use_case, preset, folders, args.out)
+            lines, tables = _section(use_case, preset, folders, args.out)
+            sections += lines
+            section_tables.update(tables)
             summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
             table = results.aggregate_speedups(folders)
             table.insert(1, "preset", preset)
@@ -243,6 +302,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "",
     ]
     scorecard_lines, cards = [], []
+    scorecard_tables: dict[str, str] = {}
     for preset in args.preset:
         card = fidelity.scorecard(summaries[preset])
         card.insert(0, "preset", preset)
@@ -257,9 +317,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"Figure: ![paper vs ours](fidelity-{preset}.png)", "",
             fidelity.scorecard_markdown(card).rstrip("\n"), "",
         ]
+        card_tables = {
+            TABLE_NAMES["scorecard"].format(preset=preset, part=part.replace("_", "-")): tex
+            for part, tex in latex.scorecard_latex(card, preset=preset).items()}
+        scorecard_tables.update(card_tables)
+        scorecard_lines += [_tex_pointer(*card_tables), ""]
     results.write_text_atomic(args.out / fidelity.FIDELITY_FILE,
                               pd.concat(cards, ignore_index=True).to_csv(index=False))
-    report = "\n".join(header + scorecard_lines + sections)
+    # Tables in the order REPORT.md shows them: scorecards first, then each use case.
+    table_paths = latex.write_tables(args.out, {**scorecard_tables, **section_tables})
+    report = "\n".join(header + scorecard_lines + sections
+                       + latex.tables_markdown(table_paths, args.out) + [""])
     results.write_text_atomic(args.out / "REPORT.md", report)
     all_speedups = pd.concat(speedups, ignore_index=True)
     results.write_text_atomic(args.out / "speedups.csv", all_speedups.to_csv(index=False))

@@ -94,3 +94,35 @@ def test_a_killed_reproduction_resumes_to_the_same_files_without_recomputing(unc
     assert resumed.keys() == reference.keys()
     for name in reference:
         assert resumed[name] == reference[name], f"{name} differs from the uninterrupted run"
+
+
+def test_latex_tables_and_band_figures_beside_the_report(uncut: Path) -> None:
+    from test_results_latex import interval_cell, parse_table
+
+    from yafs_safetail import results
+
+    out = uncut
+    report = (out / "REPORT.md").read_text()
+    names = ["fidelity-paper-ratios", "fidelity-paper-claims", "fidelity-paper-access-rate",
+             "latency-uc1-paper", "ratios-uc1-paper", "learner-uc1-paper"]
+    assert sorted(p.name for p in (out / "tables").iterdir()) == sorted(f"{n}.tex" for n in names)
+    listed = report[report.index("## LaTeX tables"):]
+    assert [line for line in listed.splitlines() if line.startswith("- ")] == [
+        f"- [`tables/{n}.tex`](tables/{n}.tex)" for n in names]
+    # The latency table holds REPORT.md's numbers: the mean over both seeds and its interval.
+    folders = [out / "uc1-paper" / f"seed{seed}" for seed in (0, 1)]
+    stats = results.aggregate_summaries(folders)
+    header, rows = parse_table((out / "tables" / "latency-uc1-paper.tex").read_text())
+    assert header[2] == "median (s)"
+    assert [row[0] for row in rows] == results.sort_methods(stats["method"].unique())
+    safetail = stats[stats["method"] == "SafeTail"].set_index("metric").loc["p99_s"]
+    assert rows[0][5] == interval_cell(safetail["mean"], safetail["ci_low"], safetail["ci_high"], 3)
+    assert rows[0][5] in report
+    _, claims = parse_table((out / "tables" / "fidelity-paper-claims.tex").read_text())
+    assert len(claims) == 3
+    # Band figures across seeds, even with --no-figures (that skips the per-run panels only).
+    for stem in ("uc1-paper-latency-bands", "uc1-paper-servers-bands"):
+        for suffix in (".png", ".pdf"):
+            assert (out / "figures" / f"{stem}{suffix}").stat().st_size > 0
+        assert f"(figures/{stem}.png)" in report
+    assert not (out / "uc1-paper" / "seed0" / "figures").exists()

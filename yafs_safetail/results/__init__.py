@@ -5,7 +5,8 @@
 * ``stats``: summaries, speed-ups, β-step averages, intervals over seeds;
 * ``paper``: the paper's published ratios and claims, ours beside them;
 * ``report``: markdown reports and the writers of a run's folder;
-* ``fidelity``: the scorecard of every published number against ours.
+* ``fidelity``: the scorecard of every published number against ours;
+* ``latex``: the report's tables as LaTeX files (``DataFrame.to_latex``).
 
 The public names of the first four are re-exported here (``results.summarize``, ...).
 """
@@ -63,7 +64,10 @@ from yafs_safetail.results.paper import (
 )
 from yafs_safetail.results.report import (
     aggregate_markdown,
+    aggregate_table,
     comparison_markdown,
+    comparison_table,
+    frame_markdown,
     summary_markdown,
     write_results,
     write_summary,
@@ -120,6 +124,7 @@ __all__ = [
     "abs_reward_by_episode",
     "access_rate_by_episode",
     "aggregate_markdown",
+    "aggregate_table",
     "aggregate_speedups",
     "aggregate_summaries",
     "baselines_of",
@@ -127,7 +132,9 @@ __all__ = [
     "bootstrap_interval",
     "check_claims",
     "comparison_markdown",
+    "comparison_table",
     "file_mode",
+    "frame_markdown",
     "geometric_interval",
     "in_calibration_subset",
     "latency_deviation_by_episode",

@@ -28,7 +28,7 @@ from yafs_safetail.results.paper import (
     check_claims,
     in_calibration_subset,
 )
-from yafs_safetail.results.report import markdown_table
+from yafs_safetail.results.report import frame_markdown
 from yafs_safetail.results.stats import bootstrap_interval, geometric_interval, speedup
 
 #: A ratio is reproduced when ours is within this relative distance of the paper's.
@@ -141,43 +141,64 @@ def _number(value: float, digits: int = 2) -> str:
     return "—" if value is None or math.isnan(value) else f"{value:.{digits}f}"
 
 
-def scorecard_markdown(card: pd.DataFrame) -> str:
-    """The scorecard as markdown: the counts, then one table of ratios and one of claims."""
-    lines = [counts_line(card), ""]
-    ratio_rows = []
-    for row in card[card["kind"] == "ratio"].itertuples(index=False):
-        interval = "" if math.isnan(row.ci_low) else f" [{row.ci_low:.2f}, {row.ci_high:.2f}]"
-        ratio_rows.append([
-            str(row.use_case), row.key, _number(row.paper), _number(row.ours) + interval,
-            f"{row.relative_error:+.0%}", "yes" if row.within_tolerance else "no", row.subset,
-        ])
-    lines += [
-        "Ratio = speed-up of the first-named method (latency of the second / latency of the "
-        "first, > 1: first faster). Ours: geometric mean over seeds [95% t-interval on the log "
-        "scale]. Calibration = one of the twelve numbers the unpublished world parameters were "
-        "fitted to (experiments/calibrate.py); held out = never used to choose or fit anything.",
-        "",
-        *markdown_table(["use case", "ratio", "paper", "ours", "error", f"within ±{TOLERANCE:.0%}",
-                         "subset"], ratio_rows),
-        "",
+#: The notes over the scorecard's tables (REPORT.md and the LaTeX tables).
+SCORECARD_RATIO_NOTE = (
+    "Ratio = speed-up of the first-named method (latency of the second / latency of the "
+    "first, > 1: first faster). Ours: geometric mean over seeds [95% t-interval on the log "
+    "scale]. Calibration = one of the twelve numbers the unpublished world parameters were "
+    "fitted to (experiments/calibrate.py); held out = never used to choose or fit anything."
+)
+SCORECARD_CLAIM_NOTE = "Claims (our reading written into the statement; holds = in most seeds):"
+SCORECARD_ACCESS_NOTE = (f"SafeTail's mean access rate (goal ≤ {ACCESS_RATE_GOAL}; mean over seeds "
+                         "[95% bootstrap interval]):")
+
+
+def _interval(low: float, high: float, digits: int) -> str:
+    return "" if math.isnan(low) else f" [{low:.{digits}f}, {high:.{digits}f}]"
+
+
+def scorecard_tables(card: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The scorecard's three tables as display strings (the markdown and LaTeX share them).
+
+    Args:
+        card: from :func:`scorecard`.
+
+    Returns:
+        ``{"ratios": ..., "claims": ..., "access_rate": ...}``, each a frame of strings whose
+        columns are the table's header.
+    """
+    ratio_rows = [
+        [str(row.use_case), row.key, _number(row.paper), _number(row.ours) + _interval(row.ci_low, row.ci_high, 2),
+         f"{row.relative_error:+.0%}", "yes" if row.within_tolerance else "no", row.subset]
+        for row in card[card["kind"] == "ratio"].itertuples(index=False)
     ]
     claim_rows = [
         [str(row.use_case), row.statement, f"{row.ours:.0%} of {row.n_seeds}",
          "yes" if row.within_tolerance else "no"]
         for row in card[card["kind"] == "claim"].itertuples(index=False)
     ]
-    lines += ["Claims (our reading written into the statement; holds = in most seeds):", "",
-              *markdown_table(["use case", "the paper says", "holds in seeds", "holds"], claim_rows),
-              ""]
     access_rows = [
-        [str(row.use_case), _number(row.ours, 3) + ("" if math.isnan(row.ci_low)
-                                                    else f" [{row.ci_low:.3f}, {row.ci_high:.3f}]"),
+        [str(row.use_case), _number(row.ours, 3) + _interval(row.ci_low, row.ci_high, 3),
          "yes" if row.within_tolerance else "no"]
         for row in card[card["kind"] == "access_rate"].itertuples(index=False)
     ]
-    lines += [f"SafeTail's mean access rate (goal ≤ {ACCESS_RATE_GOAL}; mean over seeds "
-              "[95% bootstrap interval]):", "",
-              *markdown_table(["use case", "access rate", "meets goal"], access_rows)]
+    return {
+        "ratios": pd.DataFrame(ratio_rows, dtype=object, columns=[
+            "use case", "ratio", "paper", "ours", "error", f"within ±{TOLERANCE:.0%}", "subset"]),
+        "claims": pd.DataFrame(claim_rows, dtype=object, columns=[
+            "use case", "the paper says", "holds in seeds", "holds"]),
+        "access_rate": pd.DataFrame(access_rows, dtype=object, columns=[
+            "use case", "access rate", "meets goal"]),
+    }
+
+
+def scorecard_markdown(card: pd.DataFrame) -> str:
+    """The scorecard as markdown: the counts, then one table of ratios and one of claims."""
+    tables = scorecard_tables(card)
+    lines = [counts_line(card), "",
+             SCORECARD_RATIO_NOTE, "", *frame_markdown(tables["ratios"]), "",
+             SCORECARD_CLAIM_NOTE, "", *frame_markdown(tables["claims"]), "",
+             SCORECARD_ACCESS_NOTE, "", *frame_markdown(tables["access_rate"])]
     return "\n".join(lines) + "\n"
 
 

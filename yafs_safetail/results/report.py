@@ -194,6 +194,57 @@ def write_results(
 
 
 
+#: The note over the cross-seed latency table (REPORT.md and its LaTeX twin).
+AGGREGATE_NOTE = "Test phase; mean over seeds [95% bootstrap interval over seeds]."
+#: The note over the side-by-side ratio table (REPORT.md and its LaTeX twin).
+COMPARISON_NOTE = (
+    "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
+    "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
+    "direction (facts.md)."
+)
+
+
+def frame_markdown(table: pd.DataFrame) -> list[str]:
+    """A frame of display strings (see :func:`aggregate_table`) as markdown table lines."""
+    return markdown_table([str(c) for c in table.columns],
+                          [[str(v) for v in row] for row in table.itertuples(index=False)])
+
+
+def _with_interval(mean: float, low: float, high: float, digits: int) -> str:
+    cell = _fmt(mean, digits)
+    if not math.isnan(low):
+        cell += f" [{low:.{digits}f}, {high:.{digits}f}]"
+    return cell
+
+
+def aggregate_table(stats: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
+    """The cross-seed latency table as display strings, one row per method.
+
+    REPORT.md and the LaTeX tables are both made from this frame, so they show the same numbers.
+
+    Args:
+        stats: from :func:`aggregate_summaries`.
+        digits: decimals shown.
+
+    Returns:
+        Columns ``method, seeds, median (s), p90 (s), p95 (s), p99 (s), mean access rate,
+        mean target (s)``; each metric cell ``mean [low, high]`` (just ``mean`` without an
+        interval, ``—`` when missing).
+    """
+    header = ["method", "seeds", *[PERCENTILE_NAMES[p] + " (s)" for p in PERCENTILES],
+              "mean access rate", "mean target (s)"]
+    metrics = [f"p{p}_s" for p in PERCENTILES] + ["mean_access_rate", "mean_target_s"]
+    rows = []
+    for method in sort_methods(stats["method"]):
+        part = stats[stats["method"] == method].set_index("metric")
+        row = [method, str(int(part["n_seeds"].max()))]
+        for metric in metrics:
+            row.append(_with_interval(part.loc[metric, "mean"], part.loc[metric, "ci_low"],
+                                      part.loc[metric, "ci_high"], digits))
+        rows.append(row)
+    return pd.DataFrame(rows, columns=header, dtype=object)
+
+
 def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
     """Markdown table of :func:`aggregate_summaries`: one row per method, ``mean [95% interval]``.
 
@@ -204,23 +255,32 @@ def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
     Returns:
         Markdown text ending with a newline.
     """
-    header = ["method", "seeds", *[PERCENTILE_NAMES[p] + " (s)" for p in PERCENTILES],
-              "mean access rate", "mean target (s)"]
-    metrics = [f"p{p}_s" for p in PERCENTILES] + ["mean_access_rate", "mean_target_s"]
-    rows = []
-    for method in sort_methods(stats["method"]):
-        part = stats[stats["method"] == method].set_index("metric")
-        row = [method, str(int(part["n_seeds"].max()))]
-        for metric in metrics:
-            cell = _fmt(part.loc[metric, "mean"], digits)
-            if not math.isnan(part.loc[metric, "ci_low"]):
-                cell += (f" [{part.loc[metric, 'ci_low']:.{digits}f}, "
-                         f"{part.loc[metric, 'ci_high']:.{digits}f}]")
-            row.append(cell)
-        rows.append(row)
-    lines = ["Test phase; mean over seeds [95% bootstrap interval over seeds].", "",
-             *markdown_table(header, rows)]
+    lines = [AGGREGATE_NOTE, "", *frame_markdown(aggregate_table(stats, digits))]
     return "\n".join(lines) + "\n"
+
+
+def comparison_table(aggregated: pd.DataFrame, only_stated: bool = False) -> pd.DataFrame:
+    """Our ratios (mean [95% interval]) beside the paper's, as display strings.
+
+    Args:
+        aggregated: from :func:`aggregate_speedups` (several use cases may be concatenated).
+        only_stated: keep only the rows for which the paper states a number.
+
+    Returns:
+        Columns ``use case, comparison, percentile, ours, seeds, paper, differs?``.
+    """
+    rows = []
+    for entry in aggregated.itertuples(index=False):
+        if only_stated and math.isnan(entry.paper):
+            continue
+        rows.append([
+            str(entry.use_case), f"{entry.method} over {entry.reference}",
+            PERCENTILE_NAMES[int(entry.percentile)],
+            _with_interval(entry.mean, entry.ci_low, entry.ci_high, 2), str(entry.n_seeds),
+            _fmt(entry.paper, 2), entry.note,
+        ])
+    return pd.DataFrame(rows, columns=["use case", "comparison", "percentile", "ours", "seeds",
+                                       "paper", "differs?"], dtype=object)
 
 
 def comparison_markdown(aggregated: pd.DataFrame, only_stated: bool = False) -> str:
@@ -233,25 +293,5 @@ def comparison_markdown(aggregated: pd.DataFrame, only_stated: bool = False) -> 
     Returns:
         Markdown text ending with a newline.
     """
-    rows = []
-    for entry in aggregated.itertuples(index=False):
-        if only_stated and math.isnan(entry.paper):
-            continue
-        ours = _fmt(entry.mean, 2)
-        if not math.isnan(entry.ci_low):
-            ours += f" [{entry.ci_low:.2f}, {entry.ci_high:.2f}]"
-        rows.append([
-            str(entry.use_case), f"{entry.method} over {entry.reference}",
-            PERCENTILE_NAMES[int(entry.percentile)], ours, str(entry.n_seeds),
-            _fmt(entry.paper, 2), entry.note,
-        ])
-    lines = [
-        "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
-        "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
-        "direction (facts.md).",
-        "",
-        *markdown_table(["use case", "comparison", "percentile", "ours", "seeds", "paper", "differs?"],
-                rows),
-    ]
+    lines = [COMPARISON_NOTE, "", *frame_markdown(comparison_table(aggregated, only_stated))]
     return "\n".join(lines) + "\n"
-
