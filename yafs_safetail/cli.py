@@ -18,6 +18,8 @@ from collections.abc import Callable, Sequence
 from types import FrameType
 from typing import NoReturn
 
+from yafs_safetail.logs import configure_logging, verbosity_level
+
 EXIT_BAD_INPUT = 2
 EXIT_TERMINATED = 128 + signal.SIGTERM
 
@@ -92,6 +94,26 @@ def distinct_int_list(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(
             f"{repeated[0]} is given twice in {text!r}; a repeated seed would count twice")
     return values
+
+
+def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
+    """``--quiet`` and ``--verbose`` (mutually exclusive), for every entry point."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-q", "--quiet", action="store_true",
+                       help="warnings and errors only: no progress lines or bars")
+    group.add_argument("-v", "--verbose", action="store_true",
+                       help="also debug lines: the configuration, each part's timing, worker processes")
+
+
+def configure_verbosity(args: argparse.Namespace) -> int:
+    """Set up stderr logging as ``--quiet`` / ``--verbose`` ask; returns the stderr level.
+
+    Called by each entry point right after parsing its options, so that a bad option is still
+    the only line on stderr.
+    """
+    level = verbosity_level(quiet=args.quiet, verbose=args.verbose)
+    configure_logging(level)
+    return level
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:

@@ -14,13 +14,19 @@ The flow reads top to bottom in :func:`run_experiment`:
    rename it into place, so a failed run never leaves half-written results and never destroys
    an earlier run's folder.
 
+Each step after the checks is a logged phase (``logs.Phase``: start, every 10% of a long
+phase, end with its wall time), written to stderr as the entry point configured it and, with
+the configuration and the command, into the folder's ``run.log``.
+
 Every method runs its own YAFS-compatible simulation (``sim.runner``) with the edge model as its
 delay hooks and writes the YAFS result CSVs under ``yafs/``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import logging
 import math
 import os
 import time
@@ -44,6 +50,7 @@ from yafs_safetail.edge.scenario import (
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.registry import SAFETAIL, UserMethod, baseline_names, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import (
@@ -63,7 +70,7 @@ from yafs_safetail.sim.runner import simulate
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
 
-
+log = logging.getLogger(__name__)
 
 class ExperimentError(ValueError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
@@ -91,7 +98,7 @@ class ExperimentConfig:
         step_interval_s: simulated time between two requests (one load-trace row).
         write_yafs_csv: write each method's YAFS result CSVs under ``yafs/``.
         figures: draw Figs. (a)-(g) into ``figures/``.
-        progress: show progress bars on stderr.
+        progress: show progress bars on stderr (the phases are logged either way).
         policy: a saved policy (``.keras``) to evaluate without training.
         command: the command line, recorded in ``run.json``.
         workers: processes for the run: the other methods' test phase runs in ``workers - 1``
@@ -238,10 +245,33 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     started = time.perf_counter()
     output = StagedOutput(Path(config.out_dir), config.overwrite)  # checks the target first
     inputs = _check(config)
+    checked_s = time.perf_counter() - started
+    # Nothing is logged before here: bad input stays one line on stderr, even with --verbose.
     with output as staging:
-        summary = _run_into(staging, config, inputs, timings, started)
+        with run_log(staging / RUN_LOG_FILE):
+            _log_start(config, inputs, staging, checked_s)
+            summary = _run_into(staging, config, inputs, timings, started)
+            log.debug("time (s): %s", ", ".join(f"{part} {seconds:.2f}" for part, seconds in timings.items()))
+            log.info("UC%d run: done (%.1f s)", inputs.use_case.number, timings["total"])
         output.publish()
     return ExperimentReport(out_dir=config.out_dir, summary=summary, timings_s=timings)
+
+
+def _log_start(config: ExperimentConfig, inputs: _Inputs, staging: Path, checked_s: float) -> None:
+    """What run.log opens with: the command, the version, and what this run is."""
+    use_case = inputs.use_case
+    training = ("no training (saved policy)" if inputs.train_world is None
+                else f"{inputs.train_world.n_steps} training requests")
+    n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
+    log.info("yafs-safetail %s: %s", yafs_safetail.__version__, config.command or "(run from Python)")
+    log.info("UC%d %s, preset %s, seed %d: %s, %d test requests per method, %d methods, %d process(es)",
+             use_case.number, use_case.description, config.preset, config.seed, training,
+             inputs.test_world.n_steps, n_methods, config.workers)
+    settings = {f.name: getattr(config, f.name) for f in dataclasses.fields(config) if f.name != "world"}
+    log.debug("configuration: %s", ", ".join(f"{name}={value!s}" for name, value in settings.items()))
+    log.debug("world: %s", inputs.test_world.settings.to_dict())
+    log.debug("checks and worlds: %.2f s", checked_s)
+    log.debug("writing into %s, renamed to %s when the run succeeds", staging, config.out_dir)
 
 
 def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
@@ -250,11 +280,12 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     yafs_dir = staging / YAFS_DIR if config.write_yafs_csv else None
     if yafs_dir is not None:
         yafs_dir.mkdir()
-    prefix = f"UC{inputs.use_case.number}" if config.progress else None
+    prefix = f"UC{inputs.use_case.number}"
     job = MethodsJob(
         names=tuple(baseline_names(config.redundancy_levels)), user_methods=config.methods,
         seed=config.seed, world=inputs.test_world, step_interval_s=config.step_interval_s,
-        yafs_dir=yafs_dir, episode_steps=inputs.learner_config.episode_steps, progress_prefix=prefix,
+        yafs_dir=yafs_dir, episode_steps=inputs.learner_config.episode_steps,
+        progress_label=f"{prefix} other methods test", bar=config.progress,
     )
     workers = start_workers(job, config.workers)
     try:
@@ -266,14 +297,16 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     requests = pd.concat([*safetail_frames, *other_frames], ignore_index=True)
     run = _run_metadata(config, inputs, learner, sort_methods([SAFETAIL, *job.method_names]))
     t0 = time.perf_counter()
-    summary = results.write_results(staging, requests, run)
-    learner.save(staging / POLICY_FILE)
+    with Phase(f"{prefix} writing results", logger=log):
+        summary = results.write_results(staging, requests, run)
+        learner.save(staging / POLICY_FILE)
     timings["writing"] = time.perf_counter() - t0
     if config.figures:
         from yafs_safetail.figures import draw_figures
 
         t0 = time.perf_counter()
-        draw_figures(staging, requests, run)
+        with Phase(f"{prefix} figures", logger=log):
+            draw_figures(staging, requests, run)
         timings["plotting"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - started
     return summary
@@ -284,38 +317,42 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
     """Build or load the learner; train SafeTail (unless evaluating a saved policy), then test
     it greedily. Returns the learner and SafeTail's rows of both phases."""
     t0 = time.perf_counter()
-    from yafs_safetail.methods.safetail.learner import SafeTailLearner
-    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
-
-    # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
-    # the first time, so it is done here to show up as its own part of the setup.
-    importlib.import_module("keras")
-    timings["tf_import"] = time.perf_counter() - t0
     scenario, use_case = inputs.scenario, inputs.use_case
-    if config.policy is None:
-        learner = SafeTailLearner(
-            scenario.n_servers,
-            state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
-            inputs.learner_config, config.seed,
-            metadata={"use_case": use_case.number, "topology": str(config.topology)},
-        )
-    else:
-        learner = SafeTailLearner.load(config.policy, training=False)
+    with Phase(f"UC{use_case.number} {SAFETAIL} setup (TensorFlow, the learner)", logger=log):
+        from yafs_safetail.methods.safetail.learner import SafeTailLearner
+        from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+
+        # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
+        # the first time, so it is done here to show up as its own part of the setup.
+        importlib.import_module("keras")
+        timings["tf_import"] = time.perf_counter() - t0
+        if config.policy is None:
+            learner = SafeTailLearner(
+                scenario.n_servers,
+                state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
+                inputs.learner_config, config.seed,
+                metadata={"use_case": use_case.number, "topology": str(config.topology)},
+            )
+        else:
+            learner = SafeTailLearner.load(config.policy, training=False)
     timings["setup"] = time.perf_counter() - started
     policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,
                             scales=StateScales.for_use_case(use_case.number), training=True)
     episode_steps = inputs.learner_config.episode_steps
 
     def phase(world: EdgeWorld, name: str) -> pd.DataFrame:
-        records = simulate(world, policy, config.step_interval_s,
-                           None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_{name}",
-                           f"UC{use_case.number} {SAFETAIL} {name}" if config.progress else None)
+        with Phase(f"UC{use_case.number} {SAFETAIL} {name}", world.n_steps, bar=config.progress,
+                   logger=log) as progress:
+            records = simulate(world, policy, config.step_interval_s,
+                               None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_{name}", progress)
         return records_frame(records, name, episode_steps)
 
     t0 = time.perf_counter()
     frames = []
     if inputs.train_world is not None:
         frames.append(phase(inputs.train_world, "train"))
+        log.info("UC%d %s: training rounds %d, final ε %.4f", use_case.number, SAFETAIL,
+                 learner.n_training_rounds, learner.epsilon)
     policy.training = False
     frames.append(phase(inputs.test_world, "test"))
     timings["decisions"] = policy.decision_time_s
@@ -330,6 +367,7 @@ def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, f
     by_name: dict[str, pd.DataFrame] = {}
     if workers:
         t0 = time.perf_counter()
+        log.debug("waiting for %d worker process(es)", len(workers))
         for worker in workers:
             frames, wall_s = worker.result()
             by_name.update(zip(worker.job.method_names, frames, strict=True))
