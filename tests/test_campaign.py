@@ -95,6 +95,8 @@ def test_a_failed_run_is_reported_and_the_others_finish(uncut) -> None:
     assert "topology file not found" in result.runs[2].error
     for spec in specs:
         assert campaign.recorded_run_id(out / spec.name) == spec.run_id
+        # Each run's own log, written in its worker process (where no logging was set up).
+        assert "UC1 SafeTail train: done" in (out / spec.name / RUN_LOG_FILE).read_text()
     state = json.loads((out / campaign.STATE_FILE).read_text())
     assert [r["status"] for r in state["runs"]] == ["done", "done", FAILED]
     assert "topology file not found" in state["runs"][2]["error"]

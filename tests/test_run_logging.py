@@ -268,3 +268,34 @@ def test_stderr_format_per_verbosity_and_the_terminal_filter() -> None:
         for handler in [h for h in root.handlers if h.name == STDERR_HANDLER]:
             root.removeHandler(handler)
         logging.getLogger(PACKAGE_LOGGER).setLevel(package_level)
+
+
+CAMPAIGN = REPOSITORY / "experiments" / "campaign.py"
+
+
+def test_a_quiet_campaign_shows_only_its_failed_run(tmp_path: Path) -> None:
+    grid = tmp_path / "grid.toml"
+    grid.write_text('[base]\nsteps_scale = 0.013\nfigures = false\n[axes]\n'
+                    'topology = ["topologies/paper_5servers.json", "/nonexistent/topology.json"]\n')
+    out = tmp_path / "campaign"
+    command = [sys.executable, str(CAMPAIGN), "--grid", str(grid), "--out", str(out), "--quiet"]
+    done = subprocess.run(command, cwd=REPOSITORY, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warning: [campaign ") and "failed" in lines[0], done.stderr
+    assert "topology file not found" in lines[0]
+    # The campaign's own log keeps every line; the finished run has its run.log.
+    assert "started" in (out / "campaign.log").read_text()
+    finished = [p for p in out.iterdir() if (p / "run.json").is_file()]
+    assert len(finished) == 1 and (finished[0] / RUN_LOG_FILE).is_file()
+
+
+@pytest.mark.parametrize("command", [["run", "--uc", "1"], ["sweep", "--out", "x"], ["figures", "DIR"],
+                                     ["compare", "A", "B"]])
+def test_console_subcommands_take_quiet_or_verbose_not_both(command: list[str],
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    from yafs_safetail.cli import EXIT_BAD_INPUT, main
+
+    assert main([*command, "--quiet", "--verbose"]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and "not allowed with" in err

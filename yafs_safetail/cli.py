@@ -181,6 +181,21 @@ def _script_main(relative: str) -> Callable[[Sequence[str] | None], int | None]:
     return module.main
 
 
+def _with_verbosity_options(
+        command_main: Callable[[Sequence[str] | None], int | None]) -> Callable[[Sequence[str] | None], int | None]:
+    """A command whose own parser has no ``--quiet`` / ``--verbose`` (the figures module) gets
+    them here: taken out of its arguments, logging set up, the rest passed on."""
+
+    def main(argv: Sequence[str] | None) -> int | None:
+        parser = ArgumentParser(add_help=False, allow_abbrev=False)
+        add_verbosity_options(parser)
+        args, others = parser.parse_known_args(argv)
+        configure_verbosity(args)
+        return command_main(others)
+
+    return main
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``yafs-safetail COMMAND [options]``: one console command for the project's tools."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -194,7 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if command == "figures":
         from yafs_safetail.figures import main as figures_main
 
-        return run_cli(figures_main, rest)
+        return run_cli(_with_verbosity_options(figures_main), rest)
     if command not in SCRIPT_COMMANDS:
         print(f"error: unknown command {command!r}; {USAGE}", file=sys.stderr)
         return EXIT_BAD_INPUT

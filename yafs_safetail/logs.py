@@ -81,23 +81,39 @@ class _StderrFormatter(logging.Formatter):
         return message if record.levelno == logging.INFO else f"{level}: {message}"
 
 
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a record comes (a test's capture, a redirection),
+    never to a stream replaced since."""
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self) -> TextIO:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value: TextIO) -> None:
+        pass  # always the current sys.stderr
+
+
 def configure_logging(level: int, stream: TextIO | None = None) -> None:
-    """Show the package's records of ``level`` and above on ``stream`` (default stderr).
+    """Show the package's records of ``level`` and above on ``stream`` (default: the current
+    ``sys.stderr``, whatever it is when a record comes).
 
     For entry points only, after their options are parsed. Calling it again replaces the
     handler it installed (tests call entry points in one process). Other libraries keep the
     root logger's level (warnings), whatever ``level`` is.
     """
-    stream = sys.stderr if stream is None else stream
     root = logging.getLogger()
     for handler in [h for h in root.handlers if h.name == STDERR_HANDLER]:
         root.removeHandler(handler)
-    handler = logging.StreamHandler(stream)
+    handler = _StderrHandler() if stream is None else logging.StreamHandler(stream)
     handler.name = STDERR_HANDLER
     handler.setLevel(level)
     handler.setFormatter(_StderrFormatter(verbose=level < logging.INFO))
     handler.addFilter(_WithoutCoreDebug())
-    if is_terminal(stream):
+    if is_terminal(sys.stderr if stream is None else stream):
         handler.addFilter(_WithoutPercentLines())  # the bars show that progress
     root.addHandler(handler)
     logging.getLogger(PACKAGE_LOGGER).setLevel(min(level, logging.INFO))
