@@ -225,9 +225,9 @@ class Phase:
         if self._bar is not None:
             self._bar.close()
             self._bar = None
-        counted = "" if self.total is None else f"{self.done}/{self.total} {self.unit}, "
         if exc_type is None:
             counted = "" if self.total is None else f"{self.total} {self.unit}, "
             self.logger.info("%s: done (%s%.1f s)", self.label, counted, self.elapsed_s)
-        else:
+        else:  # the error itself is the entry point's one line; this says how far the phase got
+            counted = "" if self.total is None else f"{self.done}/{self.total} {self.unit}, "
             self.logger.info("%s: stopped (%s%.1f s)", self.label, counted, self.elapsed_s)

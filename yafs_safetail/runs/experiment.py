@@ -72,6 +72,7 @@ YAFS_DIR = "yafs"
 
 log = logging.getLogger(__name__)
 
+
 class ExperimentError(ValueError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
 
