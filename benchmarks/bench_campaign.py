@@ -24,13 +24,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+from yafs_safetail.logs import RUN_LOG_FILE
 from yafs_safetail.runs.campaign import run_campaign
 from yafs_safetail.runs.grid import expand
 
 
 def _folder_bytes(folder: Path) -> dict[str, bytes]:
+    # Run folders only, not the campaign's state; not run.log either, whose times differ.
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file() and p.parent != folder}  # run folders only, not the campaign's state
+            if p.is_file() and p.parent != folder and p.name != RUN_LOG_FILE}
 
 
 def _start_ray(workers: int) -> Any:

@@ -19,7 +19,15 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import ArgumentParser, int_list, positive_float, positive_int, run_cli
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    int_list,
+    positive_float,
+    positive_int,
+    run_cli,
+)
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.runs.calibrate import (
     DEFAULT_SEEDS,
@@ -44,13 +52,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="output folder (default results/calibration)")
     parser.add_argument("--apply", action="store_true",
                         help="install the result as yafs_safetail/edge/calibration.json")
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_verbosity(args)
     command = shlex.join(["python", "experiments/calibrate.py", *(sys.argv[1:] if argv is None else argv)])
     document = calibrate(CalibrationConfig(
         preset=args.preset, seeds=args.seeds, steps_scale=args.steps_scale,
         max_evaluations=args.max_evaluations, workers=args.workers, out_dir=args.out,
         apply=args.apply, command=command,
-    ), log=lambda line: print(line, file=sys.stderr, flush=True))
+    ))  # progress lines are logged (stderr; none with --quiet)
     print(f"best: {document['parameters']} ({document['readings']['load_start']} load start), "
           f"objective {document['provenance']['objective_value']}, within ±20% "
           f"{document['provenance']['within_20_percent']:.0%}")

@@ -7,8 +7,9 @@
 The grid (TOML, YAML or JSON) sets ExperimentConfig fields in ``[base]`` and lists the values
 to combine in ``[axes]`` (see yafs_safetail/runs/grid.py and docs/campaigns.md). Each run goes
 into ``OUT/<axis values>-<run id>/``; rerunning the same command resumes where it stopped and
-recomputes nothing finished. Progress goes to stderr and ``OUT/campaign.log``, each run's state
-to ``OUT/campaign.json``; the exit status is 1 when a run failed.
+recomputes nothing finished. Progress goes to stderr (none with --quiet but failed runs) and
+``OUT/campaign.log``, each run's state to ``OUT/campaign.json``, each run's own log to its
+``run.log``; the exit status is 1 when a run failed.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import ArgumentParser, run_cli
+from yafs_safetail.cli import ArgumentParser, add_verbosity_options, configure_verbosity, run_cli
 from yafs_safetail.runs.campaign import (
     add_engine_options,
     engine_free_command,
@@ -35,7 +36,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders that hold another configuration")
     add_engine_options(parser)
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_verbosity(args)
     specs = load_grid(args.grid)
     command = engine_free_command("experiments/campaign.py", sys.argv[1:] if argv is None else argv)
     result = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,

@@ -14,7 +14,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import ArgumentParser, non_negative_int, run_cli
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    non_negative_int,
+    run_cli,
+)
 from yafs_safetail.results.compare import compare_runs, plot_comparison
 from yafs_safetail.runs.output import StagedOutput
 
@@ -26,7 +32,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("run_b", type=Path, help="results folder B")
     parser.add_argument("--out", type=Path, default=None, help="write compare.csv and compare.png into this new folder")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="bootstrap seed (default 0)")
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_verbosity(args)
     output = StagedOutput(args.out) if args.out is not None else None  # the target is checked first
     table = compare_runs(args.run_a, args.run_b, args.seed)
     print(f"A = {args.run_a}\nB = {args.run_b}")

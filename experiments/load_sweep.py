@@ -24,6 +24,8 @@ import pandas as pd
 from yafs_safetail import __version__
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
     non_negative_int,
     positive_float,
     positive_int,
@@ -108,7 +110,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--overwrite", action="store_true",
                         help="replace load folders there that hold another configuration's results")
     add_engine_options(parser)
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_verbosity(args)
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     for name in methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))

@@ -37,7 +37,13 @@ from pathlib import Path
 import pandas as pd
 
 from yafs_safetail import results
-from yafs_safetail.cli import ArgumentParser, distinct_int_list, run_cli
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    distinct_int_list,
+    run_cli,
+)
 from yafs_safetail.edge.calibration import CalibrationError, read_calibration
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
@@ -252,7 +258,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders in --out that hold another configuration")
     add_engine_options(parser)
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_verbosity(args)
     bad = [uc for uc in args.uc if uc not in USE_CASES]
     if bad:
         raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")

@@ -6,7 +6,10 @@
     python experiments/run_usecase.py --uc 1 --policy results/uc1/policy.keras --out results/uc1-eval
     python experiments/run_usecase.py --uc 1 --method examples/custom_policy/nearest_free.py:NearestFree
 
-The output folder gets requests.csv (one row per request and method), summary.csv and
+Progress goes to stderr: bars on a terminal, otherwise one line per phase start and end and
+every 10% of a long phase; --quiet keeps warnings and errors only, --verbose adds debug lines.
+The output folder gets run.log (the command, the configuration, every phase with its time),
+requests.csv (one row per request and method), summary.csv and
 summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
 Figs. (a)-(g) under figures/ as PNG and PDF, and with --yafs-csv each method's YAFS result
 CSVs under yafs/ (about 70 MB for a full UC1 run, so only on request).
@@ -22,6 +25,8 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
     non_negative_float,
     non_negative_int,
     positive_float,
@@ -30,6 +35,7 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.edge.scenario import default_placement
+from yafs_safetail.logs import is_terminal
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.runs.experiment import (
@@ -50,7 +56,7 @@ def _levels(text: str) -> tuple[int, ...]:
     return levels
 
 
-def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
+def _parser() -> ArgumentParser:
     parser = ArgumentParser(prog="run_usecase.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--uc", type=int, required=True, choices=USE_CASES,
@@ -103,9 +109,16 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     yafs_csv.add_argument("--no-yafs-csv", action="store_true",
                           help="do not write the YAFS CSVs (the default; kept for older scripts)")
     parser.add_argument("--no-figures", action="store_true", help="skip the figures")
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
-    args = parser.parse_args(argv)
+    add_verbosity_options(parser)
+    return parser
 
+
+def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
+    """The run's configuration from the command line (no logging set up)."""
+    return _config(_parser().parse_args(argv), argv)
+
+
+def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentConfig:
     placement = args.placement
     if placement is None:
         placement = default_placement(args.topology)
@@ -118,7 +131,8 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
         redundancy_levels=args.redundancy, policy=args.policy,
         methods=tuple(UserMethod(spec) for spec in args.method),
         write_yafs_csv=args.yafs_csv, figures=not args.no_figures,
-        progress=not args.quiet and sys.stderr.isatty(), command=command, workers=args.workers,
+        # Bars only where someone watches; elsewhere the phases' 10% lines say the same.
+        progress=not args.quiet and is_terminal(sys.stderr), command=command, workers=args.workers,
         overwrite=args.overwrite, force=args.force, step_interval_s=args.step_interval_s,
         resume=args.resume, checkpoint_every_s=args.checkpoint_every_s,
         target_latency_s=args.target_latency_s, load_peak_users=args.load_peak_users,
@@ -126,7 +140,9 @@ def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    config = parse_args(argv)
+    args = _parser().parse_args(argv)
+    configure_verbosity(args)
+    config = _config(args, argv)
     report = run_experiment(config)
     print((report.out_dir / "summary.md").read_text(), end="")
     print(f"\nresults: {report.out_dir}")

@@ -3,6 +3,8 @@ cheap compute model, and the paper's five-server scenario (each built once per s
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
@@ -16,6 +18,18 @@ from yafs_safetail.edge.scenario import (
 )
 from yafs_safetail.edge.traces import TraceSet, load_traces
 from yafs_safetail.edge.usecases import get_use_case
+from yafs_safetail.logs import PACKAGE_LOGGER, STDERR_HANDLER
+
+
+@pytest.fixture(autouse=True)
+def _no_logging_left_by_entry_points():
+    """Entry points called in-process (``main(argv)``) set up logging for the process; each
+    test starts from, and leaves, the state of a process that did not."""
+    yield
+    root = logging.getLogger()
+    for handler in [h for h in root.handlers if h.name == STDERR_HANDLER]:
+        root.removeHandler(handler)
+    logging.getLogger(PACKAGE_LOGGER).setLevel(logging.NOTSET)
 
 
 @pytest.fixture(scope="session")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from yafs_safetail.logs import RUN_LOG_FILE
 from yafs_safetail.runs import campaign
 from yafs_safetail.runs.campaign import EARLIER, FAILED, run_campaign
 from yafs_safetail.runs.grid import GridError, RunSpec, expand, load_grid, make_config
@@ -20,7 +21,9 @@ TOPOLOGY = REPOSITORY / "topologies" / "paper_5servers.json"
 
 
 def folder_bytes(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+    """Every file of a run folder but run.log, whose times differ from run to run."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != RUN_LOG_FILE}
 
 
 def test_grid_expands_first_axis_outermost_with_readable_names_and_ids() -> None:
@@ -92,6 +95,8 @@ def test_a_failed_run_is_reported_and_the_others_finish(uncut) -> None:
     assert "topology file not found" in result.runs[2].error
     for spec in specs:
         assert campaign.recorded_run_id(out / spec.name) == spec.run_id
+        # Each run's own log, written in its worker process (where no logging was set up).
+        assert "UC1 SafeTail train: done" in (out / spec.name / RUN_LOG_FILE).read_text()
     state = json.loads((out / campaign.STATE_FILE).read_text())
     assert [r["status"] for r in state["runs"]] == ["done", "done", FAILED]
     assert "topology file not found" in state["runs"][2]["error"]

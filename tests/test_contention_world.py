@@ -156,6 +156,9 @@ def test_load_sweep_small_budget(tmp_path):
     for name in ("SWEEP.md", "sweep_latency.png", "sweep_copies.png", "run.json", "load-0.2/sweep.csv",
                  "load-0.8/run.json", "campaign.json"):
         assert (out / name).is_file(), name
+    # Each load's run.log: the command and what each method measured there.
+    load_log = (out / "load-0.8" / "run.log").read_text()
+    assert "load-0.8 sweep: done" in load_log and "load 0.8: Tied" in load_log and "--users 10" in load_log
     first = (out / "sweep.csv").read_bytes()
     # Each load is a campaign run: rerunning resumes and recomputes nothing.
     again = subprocess.run(command, capture_output=True, text=True, timeout=600)

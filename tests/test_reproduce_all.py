@@ -12,6 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from yafs_safetail.logs import RUN_LOG_FILE
+
 REPOSITORY = Path(__file__).resolve().parents[1]
 SCRIPT = REPOSITORY / "experiments" / "reproduce_all.py"
 
@@ -34,9 +36,10 @@ def uncut(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _files(out: Path) -> dict[str, bytes]:
-    """Every run folder's files and the reports, with the --out path taken out of the recorded
-    command lines (the only place it appears)."""
-    names = [p for p in sorted(out.rglob("*")) if p.is_file()
+    """Every run folder's files (but run.log, whose times differ from run to run) and the
+    reports, with the --out path taken out of the recorded command lines (the only place it
+    appears)."""
+    names = [p for p in sorted(out.rglob("*")) if p.is_file() and p.name != RUN_LOG_FILE
              and (p.parent != out or p.name in ("REPORT.md", "fidelity.csv", "speedups.csv"))]
     return {str(p.relative_to(out)): p.read_bytes().replace(str(out).encode(), b"OUT") for p in names}
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import fcntl
 import importlib.util
 import json
+import logging
 import os
 import signal
 import subprocess
@@ -197,28 +198,30 @@ def test_too_few_test_requests_are_refused_even_without_training(tmp_path):
         check_budget(ExperimentConfig(policy=policy, steps_scale=0.002), full, full, 8, 11)
 
 
-def test_a_large_forced_budget_warns_about_the_disk(capsys):
+def test_a_large_forced_budget_warns_about_the_disk(caplog):
     from yafs_safetail.methods.safetail.presets import get_preset
     from yafs_safetail.runs.budget import check_budget
     from yafs_safetail.runs.experiment import ExperimentConfig
 
     full = get_preset("paper", 1)
     big = get_preset("paper", 1, train_steps=2_000_000)
-    check_budget(ExperimentConfig(steps_scale=200, force=True, write_yafs_csv=True), full, big, 800_000, 11)
-    err = capsys.readouterr().err
-    assert "warning: --steps-scale 200 will write about" in err
+    with caplog.at_level(logging.WARNING, logger="yafs_safetail.runs.budget"):
+        check_budget(ExperimentConfig(steps_scale=200, force=True, write_yafs_csv=True), full, big, 800_000, 11)
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 2 and "--steps-scale 200 will write about" in warnings[0]
     # 2e6 training requests, 2e6 + 8.8e6 request rows at the measured speeds: about 41 min.
-    assert "warning: --steps-scale 200 will take about 41 min" in err
+    assert "--steps-scale 200 will take about 41 min" in warnings[1]
 
 
-def test_a_default_budget_gives_no_warning(capsys):
+def test_a_default_budget_gives_no_warning(caplog):
     from yafs_safetail.methods.safetail.presets import get_preset
     from yafs_safetail.runs.budget import check_budget
     from yafs_safetail.runs.experiment import ExperimentConfig
 
     full = get_preset("paper", 1)
-    check_budget(ExperimentConfig(), full, full, full.test_steps, 11)
-    assert capsys.readouterr().err == ""
+    with caplog.at_level(logging.DEBUG, logger="yafs_safetail.runs.budget"):
+        check_budget(ExperimentConfig(), full, full, full.test_steps, 11)
+    assert not caplog.records
 
 
 def test_bad_policy_files_and_slow_links_are_one_line_errors(tmp_path):

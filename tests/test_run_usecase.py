@@ -177,7 +177,7 @@ def test_other_use_cases_run(tmp_path, uc):
     assert list(summary["method"]) == [results.SAFETAIL, *baseline_names((1,))]
     assert (summary["p50_s"] > 0).all()
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["requests.csv", "run.json", "summary.csv", "summary.md", POLICY_FILE, f"{POLICY_FILE}.json"]
+        ["requests.csv", "run.json", "run.log", "summary.csv", "summary.md", POLICY_FILE, f"{POLICY_FILE}.json"]
     )
 
 

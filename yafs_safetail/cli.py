@@ -18,6 +18,8 @@ from collections.abc import Callable, Sequence
 from types import FrameType
 from typing import NoReturn
 
+from yafs_safetail.logs import configure_logging, verbosity_level
+
 EXIT_BAD_INPUT = 2
 EXIT_TERMINATED = 128 + signal.SIGTERM
 
@@ -105,6 +107,26 @@ def distinct_int_list(text: str) -> tuple[int, ...]:
     return values
 
 
+def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
+    """``--quiet`` and ``--verbose`` (mutually exclusive), for every entry point."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-q", "--quiet", action="store_true",
+                       help="warnings and errors only: no progress lines or bars")
+    group.add_argument("-v", "--verbose", action="store_true",
+                       help="also debug lines: the configuration, each part's timing, worker processes")
+
+
+def configure_verbosity(args: argparse.Namespace) -> int:
+    """Set up stderr logging as ``--quiet`` / ``--verbose`` ask; returns the stderr level.
+
+    Called by each entry point right after parsing its options, so that a bad option is still
+    the only line on stderr.
+    """
+    level = verbosity_level(quiet=args.quiet, verbose=args.verbose)
+    configure_logging(level)
+    return level
+
+
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
     _terminating.set()
     raise Terminated()
@@ -172,6 +194,21 @@ def _script_main(relative: str) -> Callable[[Sequence[str] | None], int | None]:
     return module.main
 
 
+def _with_verbosity_options(
+        command_main: Callable[[Sequence[str] | None], int | None]) -> Callable[[Sequence[str] | None], int | None]:
+    """A command whose own parser has no ``--quiet`` / ``--verbose`` (the figures module) gets
+    them here: taken out of its arguments, logging set up, the rest passed on."""
+
+    def main(argv: Sequence[str] | None) -> int | None:
+        parser = ArgumentParser(add_help=False, allow_abbrev=False)
+        add_verbosity_options(parser)
+        args, others = parser.parse_known_args(argv)
+        configure_verbosity(args)
+        return command_main(others)
+
+    return main
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``yafs-safetail COMMAND [options]``: one console command for the project's tools."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -185,7 +222,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if command == "figures":
         from yafs_safetail.figures import main as figures_main
 
-        return run_cli(figures_main, rest)
+        return run_cli(_with_verbosity_options(figures_main), rest)
     if command not in SCRIPT_COMMANDS:
         print(f"error: unknown command {command!r}; {USAGE}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -22,6 +23,7 @@ import pandas as pd
 
 from yafs_safetail.contention.run import SUMMARY_COLUMNS, run_policy, summarise
 from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
+from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline
 from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
@@ -32,6 +34,8 @@ from yafs_safetail.runs.workers import method_rng
 
 if TYPE_CHECKING:
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+
+log = logging.getLogger(__name__)
 
 #: Every fixed method of the sweep (SafeTail is added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
@@ -177,17 +181,23 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
 
 
 def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
-    """Run one load of a sweep (a campaign run) into ``out_dir``: its ``sweep.csv`` rows and a
-    ``run.json`` recording the run id (staged; nothing is lost if it stops half way)."""
+    """Run one load of a sweep (a campaign run) into ``out_dir``: its ``sweep.csv`` rows, a
+    ``run.json`` recording the run id and a ``run.log`` (staged; nothing is lost if it stops half
+    way)."""
     from yafs_safetail import __version__
 
     output = StagedOutput(out_dir, overwrite)
     with output as staging:
-        frame = run_sweep(_point_config(spec.settings))
-        frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
-        write_text_atomic(staging / "run.json", json.dumps({
-            "package_version": __version__, "campaign_run_id": spec.run_id, "kind": LOAD_POINT,
-            "command": command, "settings": dict(spec.settings)}, indent=1, sort_keys=True) + "\n")
+        with run_log(staging / RUN_LOG_FILE):
+            log.info("yafs-safetail %s: %s", __version__, command or "(run from Python)")
+            log.info("load point %s (run id %s): %s", spec.name, spec.run_id,
+                     ", ".join(f"{key}={value}" for key, value in spec.settings.items()))
+            with Phase(f"{spec.name} sweep", logger=log):
+                frame = run_sweep(_point_config(spec.settings), log=log.info)
+            frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
+            write_text_atomic(staging / "run.json", json.dumps({
+                "package_version": __version__, "campaign_run_id": spec.run_id, "kind": LOAD_POINT,
+                "command": command, "settings": dict(spec.settings)}, indent=1, sort_keys=True) + "\n")
         output.publish()
     return out_dir
 

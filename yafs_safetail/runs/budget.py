@@ -10,14 +10,16 @@ it exceeds ``WARN_SECONDS``.
 
 from __future__ import annotations
 
+import logging
 import math
-import sys
 from typing import TYPE_CHECKING
 
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 if TYPE_CHECKING:
     from yafs_safetail.runs.experiment import ExperimentConfig
+
+log = logging.getLogger(__name__)
 
 
 class BudgetError(ValueError):
@@ -41,7 +43,7 @@ MIN_TEST_STEPS = 10
 def check_budget(config: ExperimentConfig, full: LearnerConfig, learner: LearnerConfig,
                  test_steps: int, n_methods: int) -> None:
     """Refuse a budget too small to mean anything or (without ``force``) too large for the
-    machine; warn on stderr above 1 GB of results. ``full`` is the preset at full budget."""
+    machine; log a warning above 1 GB of results (shown even with ``--quiet``). ``full`` is the preset at full budget."""
     train_steps = 0 if config.policy is not None else learner.train_steps
     scale = f"--steps-scale {config.steps_scale:g}"
     if config.policy is None and train_steps < learner.kappa:
@@ -64,11 +66,10 @@ def check_budget(config: ExperimentConfig, full: LearnerConfig, learner: Learner
             f"about {hours:.1f} h; pass --force to run it anyway"
         )
     if disk_bytes > WARN_DISK_BYTES:
-        print(f"warning: {scale} will write about {disk_bytes / 1e9:.1f} GB into {config.out_dir}",
-              file=sys.stderr)
+        log.warning("%s will write about %.1f GB into %s", scale, disk_bytes / 1e9, config.out_dir)
     if hours * 3600 > WARN_SECONDS:
-        print(f"warning: {scale} will take about {hours * 60:.0f} min (one process; measured "
-              "speeds, docs/results.md)", file=sys.stderr)
+        log.warning("%s will take about %.0f min (one process; measured speeds, docs/results.md)",
+                    scale, hours * 60)
 
 
 def estimated_seconds(train_steps: int, rows: int) -> float:

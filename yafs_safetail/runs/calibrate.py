@@ -25,6 +25,7 @@ from __future__ import annotations
 import concurrent.futures
 import datetime
 import json
+import logging
 import math
 import multiprocessing
 import subprocess
@@ -233,8 +234,13 @@ def _git_commit() -> str:
     return out.stdout.strip() or "unknown"
 
 
-def calibrate(config: CalibrationConfig, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """Run the calibration; returns the contents of ``calibration.json`` (also written)."""
+def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run the calibration; returns the contents of ``calibration.json`` (also written).
+
+    ``log`` takes each progress line (default: this module's logger at INFO).
+    """
+    if log is None:
+        log = logging.getLogger(__name__).info
     if len(set(config.seeds)) != len(config.seeds) or not config.seeds:
         raise CalibrationRunError(f"--seeds: give distinct seeds, got {list(config.seeds)}")
     if config.max_evaluations < len(LOAD_STARTS) * len(NU_CHOICES):

@@ -6,8 +6,10 @@ folder already holds a finished results folder recording the same run id (``run.
 folder resumes an interrupted campaign where it stopped; the folders themselves are the truth,
 so a run that finished just before a kill counts even if the state file missed it. The state
 file ``campaign.json`` (rewritten atomically at every change) lists every run with its status,
-time and one-line error; ``campaign.log`` keeps the progress lines. A failed run is reported
-and the others go on; the campaign then exits non-zero. A lock (``.campaign.lock``) keeps a
+time and one-line error; ``campaign.log`` keeps the progress lines, which are also logged (INFO;
+a failed run's line as a warning, so that ``--quiet`` still shows it). Each run writes its own
+``run.log`` into its folder. A failed run is reported and the others go on; the campaign then
+exits non-zero. A lock (``.campaign.lock``) keeps a
 second campaign off the same folder.
 """
 
@@ -17,8 +19,8 @@ import argparse
 import contextlib
 import fcntl
 import json
+import logging
 import shlex
-import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -35,6 +37,8 @@ LOG_FILE = "campaign.log"
 LOCK_FILE = ".campaign.lock"
 #: Seconds between two progress lines while nothing finishes.
 HEARTBEAT_S = 30.0
+
+log = logging.getLogger(__name__)
 
 DONE, EARLIER, FAILED, RUNNING, QUEUED = "done", "done earlier", "failed", "running", "to do"
 
@@ -79,14 +83,15 @@ def _clock(seconds: float) -> str:
 
 
 class _Progress:
-    """Progress lines on the stream and in the log: done, running, failed, elapsed, ETA."""
+    """Progress lines, logged and in campaign.log (and on ``stream`` when given): done,
+    running, failed, elapsed, ETA."""
 
-    def __init__(self, states: Sequence[RunState], stream: TextIO, log: TextIO) -> None:
-        self.states, self.stream, self.log = states, stream, log
+    def __init__(self, states: Sequence[RunState], stream: TextIO | None, log_file: TextIO) -> None:
+        self.states, self.stream, self.log_file = states, stream, log_file
         self.started = time.perf_counter()
         self.to_compute = sum(s.status == QUEUED for s in states)
 
-    def line(self, event: str) -> None:
+    def line(self, event: str, level: int = logging.INFO) -> None:
         count = {status: sum(s.status == status for s in self.states)
                  for status in (DONE, EARLIER, FAILED, RUNNING, QUEUED)}
         elapsed_s = time.perf_counter() - self.started
@@ -97,8 +102,10 @@ class _Progress:
         text = (f"[campaign {_clock(elapsed_s)}] {event} | {count[DONE] + count[EARLIER]}/"
                 f"{len(self.states)} done ({count[EARLIER]} earlier), {count[RUNNING]} running, "
                 f"{count[FAILED]} failed, {count[QUEUED]} to do | ETA {eta}")
-        print(text, file=self.stream, flush=True)
-        print(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {text}", file=self.log, flush=True)
+        log.log(level, "%s", text)
+        if self.stream is not None:
+            print(text, file=self.stream, flush=True)
+        print(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {text}", file=self.log_file, flush=True)
 
 
 def summary_table(result: CampaignResult) -> str:
@@ -165,13 +172,13 @@ def run_campaign(specs: Sequence[RunSpec], out: Path, *, engine: str = "local",
         command: recorded in every run's ``run.json`` (keep engine options out of it, so the
             files do not depend on the engine: :func:`engine_free_command`).
         overwrite: replace folders that hold a run of another configuration.
-        stream: where progress goes (default stderr).
+        stream: also write the progress lines and the summary table here (they are logged
+            either way: INFO, a failed run's line WARNING).
         heartbeat_s: seconds between progress lines while nothing finishes.
 
     Returns:
         Every run's state; ``failed`` > 0 means the campaign should exit non-zero.
     """
-    stream = stream or sys.stderr
     out = Path(out)
     refuse_protected(out)
     try:
@@ -180,19 +187,25 @@ def run_campaign(specs: Sequence[RunSpec], out: Path, *, engine: str = "local",
         raise OSError(f"--out {out}: cannot create it: {error.strerror}") from None
     if not specs:
         raise CampaignError("the grid holds no run")
-    with _campaign_lock(out), open(out / LOG_FILE, "a") as log:
+    with _campaign_lock(out), open(out / LOG_FILE, "a") as log_file:
         states = [_triage(spec, out / spec.name, overwrite) for spec in specs]
         result = CampaignResult(states)
         _write_state(out, states, command)
-        progress = _Progress(states, stream, log)
+        progress = _Progress(states, stream, log_file)
         queue = [s for s in states if s.status == QUEUED]
         progress.line(f"start: {len(states)} runs, {len(queue)} to compute, engine {engine}")
+        for state in states:
+            if state.status == FAILED:  # refused at once (a folder it may not replace)
+                progress.line(f"failed {state.spec.name}: {state.error}", logging.WARNING)
         if queue:
-            _execute(queue, out, make_engine(engine, workers, ray_address), command, overwrite,
-                     progress, states, heartbeat_s)
+            runner = make_engine(engine, workers, ray_address)
+            log.debug("engine %s: %d run(s) at a time", engine, runner.slots)
+            _execute(queue, out, runner, command, overwrite, progress, states, heartbeat_s)
         table = summary_table(result)
-        print(table, file=stream, end="", flush=True)
-        print(table, file=log, end="", flush=True)
+        log.info("%s", table.rstrip("\n"))
+        if stream is not None:
+            print(table, file=stream, end="", flush=True)
+        print(table, file=log_file, end="", flush=True)
         return result
 
 
@@ -209,6 +222,7 @@ def _execute(queue: list[RunState], out: Path, runner: Any, command: str, overwr
                 state.status = RUNNING
                 pending[runner.submit(task)] = (state, task)
                 progress.line(f"started {state.spec.name}")
+                log.debug("run %s (id %s) into %s", state.spec.name, state.spec.run_id, task.out_dir)
             _write_state(out, states, command)
             done = runner.wait(list(pending), heartbeat_s)
             if not done:
@@ -222,7 +236,8 @@ def _execute(queue: list[RunState], out: Path, runner: Any, command: str, overwr
                 state.status = FAILED if state.error else DONE
                 where = f" on node {state.node}" if state.node else ""
                 progress.line(f"{state.status} {state.spec.name} ({state.wall_s:.1f} s{where})"
-                              + (f": {state.error}" if state.error else ""))
+                              + (f": {state.error}" if state.error else ""),
+                              logging.WARNING if state.error else logging.INFO)
             _write_state(out, states, command)
         interrupted = False
     finally:

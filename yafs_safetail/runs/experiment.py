@@ -14,6 +14,10 @@ The flow reads top to bottom in :func:`run_experiment`:
    rename it into place, so a failed run never leaves half-written results and never destroys
    an earlier run's folder.
 
+Each step after the checks is a logged phase (``logs.Phase``: start, every 10% of a long
+phase, end with its wall time), written to stderr as the entry point configured it and, with
+the configuration and the command, into the folder's ``run.log``.
+
 Every method runs its own YAFS-compatible simulation (``sim.runner``) with the edge model as its
 delay hooks and writes the YAFS result CSVs under ``yafs/``.
 """
@@ -22,9 +26,9 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import logging
 import math
 import os
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,6 +50,7 @@ from yafs_safetail.edge.scenario import (
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.registry import SAFETAIL, UserMethod, baseline_names, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import (
@@ -75,6 +80,7 @@ from yafs_safetail.sim.runner import Simulation, simulate
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
 
+log = logging.getLogger(__name__)
 
 
 class ExperimentError(ValueError):
@@ -103,7 +109,7 @@ class ExperimentConfig:
         step_interval_s: simulated time between two requests (one load-trace row).
         write_yafs_csv: write each method's YAFS result CSVs under ``yafs/``.
         figures: draw Figs. (a)-(g) into ``figures/``.
-        progress: show progress bars on stderr.
+        progress: show progress bars on stderr (the phases are logged either way).
         policy: a saved policy (``.keras``) to evaluate without training.
         command: the command line, recorded in ``run.json``.
         workers: processes for the run: the other methods' test phase runs in ``workers - 1``
@@ -275,18 +281,41 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     output = StagedOutput(Path(config.out_dir), config.overwrite)  # checks the target first
     inputs = _check(config)
     checkpoints = _Checkpoints.for_run(config, inputs, output.target)
+    checked_s = time.perf_counter() - started
+    # Nothing is logged before here: bad input stays one line on stderr, even with --verbose.
     try:
         with output as staging:
-            summary = _run_into(staging, config, inputs, timings, started, checkpoints)
+            with run_log(staging / RUN_LOG_FILE):
+                _log_start(config, inputs, staging, checked_s)
+                summary = _run_into(staging, config, inputs, timings, started, checkpoints)
+                log.debug("time (s): %s", ", ".join(f"{part} {seconds:.2f}" for part, seconds in timings.items()))
+                log.info("UC%d run: done (%.1f s)", inputs.use_case.number, timings["total"])
             output.publish()
+            if checkpoints is not None:  # the results are in place: nothing to resume (the
+                discard_checkpoint(output.target)  # lock is still ours, so no other run's)
     except BaseException as error:
         if checkpoints is not None and checkpoints.written:
             error.add_note(f"training checkpoint kept in {checkpoint_folder(output.target)}: "
                            "the same command with --resume continues it")
         raise
-    if checkpoints is not None:
-        discard_checkpoint(output.target)  # the results are in place: nothing to resume
     return ExperimentReport(out_dir=config.out_dir, summary=summary, timings_s=timings)
+
+
+def _log_start(config: ExperimentConfig, inputs: _Inputs, staging: Path, checked_s: float) -> None:
+    """What run.log opens with: the command, the version, and what this run is."""
+    use_case = inputs.use_case
+    training = ("no training (saved policy)" if inputs.train_world is None
+                else f"{inputs.train_world.n_steps} training requests")
+    n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
+    log.info("yafs-safetail %s: %s", yafs_safetail.__version__, config.command or "(run from Python)")
+    log.info("UC%d %s, preset %s, seed %d: %s, %d test requests per method, %d methods, %d process(es)",
+             use_case.number, use_case.description, config.preset, config.seed, training,
+             inputs.test_world.n_steps, n_methods, config.workers)
+    settings = {f.name: getattr(config, f.name) for f in dataclasses.fields(config) if f.name != "world"}
+    log.debug("configuration: %s", ", ".join(f"{name}={value!s}" for name, value in settings.items()))
+    log.debug("world: %s", inputs.test_world.settings.to_dict())
+    log.debug("checks and worlds: %.2f s", checked_s)
+    log.debug("writing into %s, renamed to %s when the run succeeds", staging, config.out_dir)
 
 
 @dataclass
@@ -317,8 +346,8 @@ class _Checkpoints:
         run_id = config_run_id(config)
         resume_from = read_checkpoint(target, run_id) if config.resume else None
         if resume_from is None and has_checkpoint(target):
-            print(f"warning: {checkpoint_folder(target)} holds an interrupted run's checkpoint; this "
-                  "run starts over and replaces it (--resume continues it)", file=sys.stderr)
+            log.warning("%s holds an interrupted run's checkpoint; this run starts over and "
+                        "replaces it (--resume continues it)", checkpoint_folder(target))
         return cls(target, run_id, float(config.checkpoint_every_s), resume_from,
                    written=resume_from is not None)
 
@@ -343,11 +372,12 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     yafs_dir = staging / YAFS_DIR if config.write_yafs_csv else None
     if yafs_dir is not None:
         yafs_dir.mkdir()
-    prefix = f"UC{inputs.use_case.number}" if config.progress else None
+    prefix = f"UC{inputs.use_case.number}"
     job = MethodsJob(
         names=tuple(baseline_names(config.redundancy_levels)), user_methods=config.methods,
         seed=config.seed, world=inputs.test_world, step_interval_s=config.step_interval_s,
-        yafs_dir=yafs_dir, episode_steps=inputs.learner_config.episode_steps, progress_prefix=prefix,
+        yafs_dir=yafs_dir, episode_steps=inputs.learner_config.episode_steps,
+        progress_label=f"{prefix} other methods test", bar=config.progress,
     )
     workers = start_workers(job, config.workers)
     try:
@@ -359,14 +389,16 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     requests = pd.concat([*safetail_frames, *other_frames], ignore_index=True)
     run = _run_metadata(config, inputs, learner, sort_methods([SAFETAIL, *job.method_names]))
     t0 = time.perf_counter()
-    summary = results.write_results(staging, requests, run)
-    learner.save(staging / POLICY_FILE)
+    with Phase(f"{prefix} writing results", logger=log):
+        summary = results.write_results(staging, requests, run)
+        learner.save(staging / POLICY_FILE)
     timings["writing"] = time.perf_counter() - t0
     if config.figures:
         from yafs_safetail.figures import draw_figures
 
         t0 = time.perf_counter()
-        draw_figures(staging, requests, run)
+        with Phase(f"{prefix} figures", logger=log):
+            draw_figures(staging, requests, run)
         timings["plotting"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - started
     return summary
@@ -379,32 +411,34 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
     checkpoint when resuming), then test it greedily. Returns the learner and SafeTail's rows
     of both phases."""
     t0 = time.perf_counter()
-    from yafs_safetail.methods.safetail.learner import SafeTailLearner
-    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
-
-    # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
-    # the first time, so it is done here to show up as its own part of the setup.
-    importlib.import_module("keras")
-    timings["tf_import"] = time.perf_counter() - t0
     scenario, use_case = inputs.scenario, inputs.use_case
-    if config.policy is None:
-        learner = SafeTailLearner(
-            scenario.n_servers,
-            state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
-            inputs.learner_config, config.seed,
-            metadata={"use_case": use_case.number, "topology": str(config.topology)},
-        )
-    else:
-        learner = SafeTailLearner.load(config.policy, training=False)
+    with Phase(f"UC{use_case.number} {SAFETAIL} setup (TensorFlow, the learner)", logger=log):
+        from yafs_safetail.methods.safetail.learner import SafeTailLearner
+        from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+
+        # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
+        # the first time, so it is done here to show up as its own part of the setup.
+        importlib.import_module("keras")
+        timings["tf_import"] = time.perf_counter() - t0
+        if config.policy is None:
+            learner = SafeTailLearner(
+                scenario.n_servers,
+                state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
+                inputs.learner_config, config.seed,
+                metadata={"use_case": use_case.number, "topology": str(config.topology)},
+            )
+        else:
+            learner = SafeTailLearner.load(config.policy, training=False)
     timings["setup"] = time.perf_counter() - started
     policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,
                             scales=StateScales.for_use_case(use_case.number), training=True)
     episode_steps = inputs.learner_config.episode_steps
 
     def phase(world: EdgeWorld, name: str) -> pd.DataFrame:
-        records = simulate(world, policy, config.step_interval_s,
-                           None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_{name}",
-                           f"UC{use_case.number} {SAFETAIL} {name}" if config.progress else None)
+        with Phase(f"UC{use_case.number} {SAFETAIL} {name}", world.n_steps, bar=config.progress,
+                   logger=log) as progress:
+            records = simulate(world, policy, config.step_interval_s,
+                               None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_{name}", progress)
         return records_frame(records, name, episode_steps)
 
     t0 = time.perf_counter()
@@ -412,6 +446,8 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
     if inputs.train_world is not None:
         frames.append(records_frame(_train(config, inputs, policy, yafs_dir, checkpoints),
                                     "train", episode_steps))
+        log.info("UC%d %s: training rounds %d, final ε %.4f", use_case.number, SAFETAIL,
+                 learner.n_training_rounds, learner.epsilon)
     policy.training = False
     frames.append(phase(inputs.test_world, "test"))
     timings["decisions"] = policy.decision_time_s
@@ -426,28 +462,32 @@ def _train(config: ExperimentConfig, inputs: _Inputs, policy: Any, yafs_dir: Pat
     """SafeTail's training phase, from its checkpoint when resuming; returns every record."""
     world = inputs.train_world
     assert world is not None
-    label = f"UC{inputs.use_case.number} {SAFETAIL} train" if config.progress else None
     path = None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_train"
-    if checkpoints is None:
-        return simulate(world, policy, config.step_interval_s, path, label)
-    earlier: list[Any] = []
-    first_step = 0
-    if checkpoints.resume_from is not None:
-        state = checkpoints.resume_from
-        policy.learner.restore_training_state(state.learner_state)
-        policy.decision_time_s, policy.training_time_s = state.decision_time_s, state.training_time_s
-        earlier, first_step = list(state.records), state.next_step
+    with Phase(f"UC{inputs.use_case.number} {SAFETAIL} train", world.n_steps, bar=config.progress,
+               logger=log) as progress:
+        if checkpoints is None:
+            return simulate(world, policy, config.step_interval_s, path, progress)
+        earlier: list[Any] = []
+        first_step = 0
+        if checkpoints.resume_from is not None:
+            state = checkpoints.resume_from
+            policy.learner.restore_training_state(state.learner_state)
+            policy.decision_time_s, policy.training_time_s = state.decision_time_s, state.training_time_s
+            earlier, first_step = list(state.records), state.next_step
+            log.info("UC%d %s train: resumed from the checkpoint at request %d", inputs.use_case.number,
+                     SAFETAIL, first_step)
+            progress.update(first_step)
 
-    def after_chunk(simulation: Simulation) -> None:
-        # Only between two requests with nothing running can a fresh simulation take over.
-        if simulation.quiescent:
-            checkpoints.write(policy, simulation.next_step, earlier + simulation.records)
+        def after_chunk(simulation: Simulation) -> None:
+            # Only between two requests with nothing running can a fresh simulation take over.
+            if simulation.quiescent:
+                checkpoints.write(policy, simulation.next_step, earlier + simulation.records)
 
-    records = earlier + simulate(world, policy, config.step_interval_s, path, label,
-                                 first_step=first_step, after_chunk=after_chunk,
-                                 chunk_steps=CHECKPOINT_CHUNK_STEPS)
-    checkpoints.write(policy, world.n_steps, records, force=True)  # a kill while testing resumes here
-    return records
+        records = earlier + simulate(world, policy, config.step_interval_s, path, progress,
+                                     first_step=first_step, after_chunk=after_chunk,
+                                     chunk_steps=CHECKPOINT_CHUNK_STEPS)
+        checkpoints.write(policy, world.n_steps, records, force=True)  # a kill while testing resumes here
+        return records
 
 
 def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, float]) -> list[pd.DataFrame]:
@@ -455,6 +495,7 @@ def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, f
     by_name: dict[str, pd.DataFrame] = {}
     if workers:
         t0 = time.perf_counter()
+        log.debug("waiting for %d worker process(es)", len(workers))
         for worker in workers:
             frames, wall_s = worker.result()
             by_name.update(zip(worker.job.method_names, frames, strict=True))

@@ -8,8 +8,10 @@ worker never touches TensorFlow.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import dataclasses
+import logging
 import multiprocessing
 import signal
 import sys
@@ -23,12 +25,15 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.edge.world import EdgeWorld
+from yafs_safetail.logs import Phase
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import UserMethod, make_baseline
 from yafs_safetail.record import records_frame
 from yafs_safetail.sim.runner import simulate
 
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+log = logging.getLogger(__name__)
 
 
 def method_rng(seed: int, method: str) -> np.random.Generator:
@@ -48,7 +53,9 @@ class MethodsJob:
         step_interval_s: time between requests.
         yafs_dir: where the YAFS CSVs go (None: not written).
         episode_steps: α_s, for the rows' episode numbers.
-        progress_prefix: label prefix of progress bars (None: silent).
+        progress_label: names the job's one logged phase, every method's requests together
+            (None: nothing logged).
+        bar: also show a progress bar (only where the job runs in the terminal's own process).
     """
 
     names: tuple[str, ...]
@@ -58,7 +65,8 @@ class MethodsJob:
     step_interval_s: float
     yafs_dir: Path | None
     episode_steps: int
-    progress_prefix: str | None
+    progress_label: str | None
+    bar: bool = False
 
     def policies(self) -> list[Policy]:
         n = self.world.n_servers
@@ -68,14 +76,23 @@ class MethodsJob:
     def run(self) -> tuple[list[pd.DataFrame], float]:
         """Simulate each method; its request rows (in order) and the wall time."""
         started = time.perf_counter()
+        policies = self.policies()
+        if self.progress_label is None:
+            phase: contextlib.AbstractContextManager[Phase | None] = contextlib.nullcontext()
+        else:
+            phase = Phase(self.progress_label, len(policies) * self.world.n_steps, bar=self.bar, logger=log)
         frames = []
-        for policy in self.policies():
-            records = simulate(
-                self.world, policy, self.step_interval_s,
-                None if self.yafs_dir is None else self.yafs_dir / f"{policy.name}_test",
-                None if self.progress_prefix is None else f"{self.progress_prefix} {policy.name} test",
-            )
-            frames.append(records_frame(records, "test", self.episode_steps))
+        with phase as progress:
+            for policy in policies:
+                method_started = time.perf_counter()
+                records = simulate(
+                    self.world, policy, self.step_interval_s,
+                    None if self.yafs_dir is None else self.yafs_dir / f"{policy.name}_test",
+                    progress,
+                )
+                frames.append(records_frame(records, "test", self.episode_steps))
+                log.debug("%s test: %d requests in %.2f s", policy.name, len(records),
+                          time.perf_counter() - method_started)
         return frames, time.perf_counter() - started
 
     @property
@@ -123,6 +140,7 @@ class MethodsWorker:
                                          name="yafs-safetail-baselines")
         self._process.start()
         sender.close()
+        log.debug("worker process %s started: %s", self._process.pid, ", ".join(job.method_names))
 
     def result(self) -> tuple[list[pd.DataFrame], float]:
         """Wait for the job's result; re-raises its exception."""
@@ -136,6 +154,8 @@ class MethodsWorker:
         self._process.join()
         if not ok:
             raise payload
+        log.debug("worker process %s ended: %s in %.1f s", self._process.pid,
+                  ", ".join(self.job.method_names), payload[1])
         return payload
 
     def stop(self) -> None:
@@ -155,10 +175,12 @@ def start_workers(job: MethodsJob, workers: int) -> list[MethodsWorker]:
     if (n_processes < 1 or "fork" not in multiprocessing.get_all_start_methods()
             or multiprocessing.current_process().daemon):
         return []
-    # Progress bars stay with this process: bars from several processes garble a terminal.
+    # Bars stay with this process (bars from several processes garble a terminal); each
+    # worker's job is its own logged phase, numbered when there are several.
     return [
-        MethodsWorker(dataclasses.replace(job, names=job.names[i::n_processes],
-                                          user_methods=job.user_methods[i::n_processes],
-                                          progress_prefix=None))
+        MethodsWorker(dataclasses.replace(
+            job, names=job.names[i::n_processes], user_methods=job.user_methods[i::n_processes], bar=False,
+            progress_label=job.progress_label if job.progress_label is None or n_processes == 1
+            else f"{job.progress_label} [part {i + 1}/{n_processes}]"))
         for i in range(n_processes)
     ]

@@ -6,12 +6,12 @@ here (a YAFS-style script can do the same by hand, see ``examples/paper_scenario
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from yafs_safetail.edge.world import EdgeWorld
+from yafs_safetail.logs import Phase
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.sim.hooks import EdgeModel, edge_application
@@ -21,7 +21,7 @@ from yafs_safetail.sim.selection import PolicySelection
 from yafs_safetail.yafs.core import Sim
 from yafs_safetail.yafs.topology import Topology
 
-#: Requests simulated between two progress-bar updates.
+#: Requests simulated at most between two progress updates.
 PROGRESS_CHUNK_STEPS = 500
 
 
@@ -116,7 +116,7 @@ def simulate(
     policy: Policy,
     step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
     results_path: Path | None = None,
-    progress_label: str | None = None,
+    progress: Phase | None = None,
     n_requests: int | None = None,
     first_step: int = 0,
     after_chunk: Callable[[Simulation], None] | None = None,
@@ -129,7 +129,8 @@ def simulate(
         policy: the method.
         step_interval_s: time between requests.
         results_path: YAFS results path prefix (None: no YAFS CSVs).
-        progress_label: show a progress bar with this label (None: silent).
+        progress: the phase this simulation's requests count towards (its 10% lines and bar;
+            several simulations may share one phase, each adding its requests; None: silent).
         n_requests: run only the world's first requests (None: all of them).
         first_step: start at this step (resuming; the records are of the later steps only).
         after_chunk: called with the simulation after every ``chunk_steps`` requests (where
@@ -144,24 +145,21 @@ def simulate(
     """
     simulation = deploy(world, policy, step_interval_s, results_path, first_step)
     n_steps = (world.n_steps if n_requests is None else min(int(n_requests), world.n_steps)) - first_step
-    bar = None
-    if progress_label is not None:
-        from tqdm import tqdm
-
-        bar = tqdm(total=n_steps + first_step, initial=first_step, desc=progress_label, unit="req",
-                   file=sys.stderr, leave=False)
+    before = 0 if progress is None else progress.done  # the phase's requests counted already
     done = 0
     while done < n_steps:
-        # Chunked runs only to move the progress bar and to let a training run checkpoint;
-        # Sim.run continues the same simulation.
-        done = min(n_steps, done + chunk_steps)
+        # Chunked runs only to report progress (pausing exactly where the phase's next 10% line
+        # is due) and to let a training run checkpoint; Sim.run continues the same simulation,
+        # so the records do not depend on it.
+        stop = done + chunk_steps
+        if progress is not None:
+            stop = min(stop, progress.next_line_at(before + done) - before)
+        done = min(n_steps, max(stop, done + 1))
         simulation.run_until_request(done)
-        if bar is not None:
-            bar.update(first_step + len(simulation.records) - bar.n)
+        if progress is not None:
+            progress.update(before + len(simulation.records))
         if after_chunk is not None:
             after_chunk(simulation)
-    if bar is not None:
-        bar.close()
     if len(simulation.records) != n_steps:
         raise SimulationError(
             f"{policy.name}: {len(simulation.records)} of {n_steps} requests completed; "
