@@ -1,6 +1,6 @@
-"""Campaign throughput: the same 8-run campaign with 1 and 2 workers, local and Ray.
+"""Campaign throughput: the same 12-run campaign with 1 and 2 workers, local and Ray.
 
-Each configuration runs the whole campaign (UC1, paper preset, seeds 0-7, no figures, the
+Each configuration runs the whole campaign (UC1, paper preset, seeds 0-11, no figures, the
 given step scale) into a fresh temporary folder through ``runs.campaign.run_campaign``, so it
 pays everything a user pays: worker start-up (one TensorFlow import per worker process), the
 runs, and for Ray the runtime's start and shutdown. Printed: wall time per configuration, the
@@ -11,7 +11,7 @@ Goal (issue 14): 2 workers >= 1.8x one worker; Ray's wall time <= 1.10x the loca
 
 Usage::
 
-    python benchmarks/bench_campaign.py [--runs 8] [--steps-scale 1] [--engines local,ray]
+    python benchmarks/bench_campaign.py [--runs 12] [--steps-scale 1] [--engines local,ray]
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def _start_ray(workers: int) -> Any:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--runs", type=int, default=8, help="runs in the campaign (seeds 0..runs-1)")
+    parser.add_argument("--runs", type=int, default=12, help="runs in the campaign (seeds 0..runs-1)")
     # Full-size runs by default: a campaign's runs are real runs, and at a tiny scale the
     # workers' fixed start-up (TensorFlow's import, ~5-9 s each) is most of the wall time.
     parser.add_argument("--steps-scale", type=float, default=1.0, help="each run's step scale")
