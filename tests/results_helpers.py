@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -75,6 +76,15 @@ def write_run_folder(path, rng: np.random.Generator, use_case: int = 1, seed: in
     results.write_run_json(path, make_run(use_case, seed))
     results.write_summary(path)  # reads both files back
     return requests
+
+
+def write_seed_folders(root: Path, n_seeds: int, rng_seed: int) -> list[Path]:
+    """Synthetic run folders ``root/seed<S>`` of use case 1 for seeds 0..n_seeds-1 (each
+    drawn from its own generator, ``rng_seed + S``)."""
+    paths = [root / f"seed{seed}" for seed in range(n_seeds)]
+    for seed, path in enumerate(paths):
+        write_run_folder(path, np.random.default_rng(rng_seed + seed), seed=seed)
+    return paths
 
 
 # ---------------------------------------------------------------------------- method names

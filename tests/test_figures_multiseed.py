@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
-from results_helpers import N_SERVERS, make_run, write_run_folder
+from results_helpers import N_SERVERS, make_run, write_run_folder, write_seed_folders
 
 from yafs_safetail import figures_multiseed as fm
 from yafs_safetail import results
@@ -24,11 +24,7 @@ BETA = 20  # results_helpers.make_run
 @pytest.fixture(scope="module")
 def folders(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     """Four synthetic run folders of use case 1, seeds 0-3."""
-    root = tmp_path_factory.mktemp("bands")
-    paths = [root / f"seed{seed}" for seed in range(N_SEEDS)]
-    for seed, path in enumerate(paths):
-        write_run_folder(path, np.random.default_rng(200 + seed), seed=seed)
-    return paths
+    return write_seed_folders(tmp_path_factory.mktemp("bands"), N_SEEDS, 200)
 
 
 @pytest.fixture(scope="module")

@@ -7,10 +7,9 @@ import math
 import re
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
-from results_helpers import write_run_folder
+from results_helpers import write_seed_folders
 
 from yafs_safetail import results
 from yafs_safetail.results import fidelity, latex
@@ -22,11 +21,7 @@ N_SEEDS = 3
 @pytest.fixture(scope="module")
 def folders(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     """Three synthetic run folders of use case 1 (seeds 0, 1, 2)."""
-    root = tmp_path_factory.mktemp("latex")
-    paths = [root / f"seed{seed}" for seed in range(N_SEEDS)]
-    for seed, path in enumerate(paths):
-        write_run_folder(path, np.random.default_rng(100 + seed), seed=seed)
-    return paths
+    return write_seed_folders(tmp_path_factory.mktemp("latex"), N_SEEDS, 100)
 
 
 def parse_table(tex: str) -> tuple[list[str], list[list[str]]]:
