@@ -163,3 +163,34 @@ def test_a_two_node_ray_cluster_writes_the_same_bytes(uncut, tmp_path: Path) -> 
         assert len({run.node for run in result.runs}) == 2, [run.node for run in result.runs]
     finally:
         cluster.shutdown()
+
+
+def test_a_run_interrupted_while_training_resumes_from_its_checkpoint(uncut, tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    import dataclasses
+
+    from yafs_safetail.runs import experiment
+    from yafs_safetail.runs.checkpoint import checkpoint_folder
+
+    reference, specs, _, _ = uncut
+    out = tmp_path / "interrupted"
+    shutil.copytree(reference / specs[0].name, out / specs[0].name)
+    # The second run was stopped after its first training checkpoint.
+    real_write = experiment.write_checkpoint
+
+    def write_then_stop(target, checkpoint):  # type: ignore[no-untyped-def]
+        real_write(target, checkpoint)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(experiment, "write_checkpoint", write_then_stop)
+    config = dataclasses.replace(make_config(specs[1], out / specs[1].name), checkpoint_every_s=0.0)
+    with pytest.raises(KeyboardInterrupt):
+        experiment.run_experiment(config)
+    monkeypatch.setattr(experiment, "write_checkpoint", real_write)
+    assert checkpoint_folder((out / specs[1].name).resolve()).is_dir()
+    result = run_campaign(specs, out, stream=io.StringIO())
+    assert [r.status for r in result.runs] == [EARLIER, "done"]
+    assert "resumed from the checkpoint at request" in (out / specs[1].name / RUN_LOG_FILE).read_text()
+    for spec in specs:
+        assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name
+    assert not any(p.name.endswith(".checkpoint") for p in out.iterdir())  # removed once done

@@ -124,6 +124,16 @@ def read_checkpoint(target: Path, run_id: str) -> TrainingCheckpoint:
     return checkpoint
 
 
+def matches(target: Path, run_id: str) -> bool:
+    """Whether ``target``'s run left a checkpoint of this very configuration (a campaign then
+    resumes it instead of starting over)."""
+    try:
+        read_checkpoint(target, run_id)
+    except CheckpointError:
+        return False
+    return True
+
+
 def has_checkpoint(target: Path) -> bool:
     """Whether an interrupted run left a checkpoint for ``target``."""
     return (checkpoint_folder(target) / CHECKPOINT_MARKER).is_file()

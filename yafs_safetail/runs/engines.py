@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from yafs_safetail.runs.grid import RunSpec, make_config
+from yafs_safetail.runs.grid import RunSpec, config_run_id, make_config
 from yafs_safetail.runs.output import StagedOutput
 
 ENGINES = ("local", "ray")
@@ -77,9 +77,15 @@ def execute(task: RunTask) -> RunResult:
 
             run_load_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
         else:
+            from yafs_safetail.runs import checkpoint
             from yafs_safetail.runs.experiment import run_experiment
 
-            run_experiment(make_config(task.spec, Path(task.out_dir), task.command, task.overwrite))
+            config = make_config(task.spec, Path(task.out_dir), task.command, task.overwrite)
+            # A run of this campaign interrupted while training goes on from its checkpoint
+            # (same run id: the same configuration and code); any other starts over.
+            if checkpoint.matches(Path(task.out_dir).resolve(), config_run_id(config)):
+                config = replace(config, resume=True)
+            run_experiment(config)
         error = ""
     except Exception as exc:  # any run's failure, bug or bad input, is that run's alone
         error = one_line(exc)
