@@ -93,3 +93,17 @@ def test_sigterm_during_library_code_that_turns_it_into_another_error(capsys: py
     finally:
         signal.signal(signal.SIGTERM, previous)
     assert capsys.readouterr().err == "error: terminated; no partial results were kept\n"
+
+
+def test_a_reader_that_goes_away_is_not_an_error(tmp_path):
+    # `yafs-safetail --help | head -1`: the pipe closes while the command still writes.
+    import subprocess
+    import sys
+
+    script = ("import sys\nfrom yafs_safetail.cli import run_cli\n"
+              "def main(argv):\n    for i in range(100000):\n        print('line', i)\n"
+              "sys.exit(run_cli(main, []))\n")
+    done = subprocess.run(f"{sys.executable} -c \"{script}\" | head -1", shell=True,
+                          capture_output=True, text=True, timeout=120)
+    assert done.stdout == "line 0\n"
+    assert done.stderr == "", done.stderr

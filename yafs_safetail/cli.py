@@ -150,6 +150,12 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     _terminating.clear()
     try:
         code = main(argv)
+    except BrokenPipeError:
+        # The reader went away (``... | head``): like any Unix tool, stop without a word. The
+        # results are already written; stdout is pointed at /dev/null so that Python's flush
+        # at exit does not fail on the closed pipe again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except BaseException as error:
         # SIGTERM raised inside library code may come out as another exception (an import
         # interrupted by it becomes an ImportError): the flag says what really happened.
