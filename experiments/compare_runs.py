@@ -37,13 +37,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_verbosity(args)
     output = StagedOutput(args.out) if args.out is not None else None  # the target is checked first
     table = compare_runs(args.run_a, args.run_b, args.seed)
-    print(f"A = {args.run_a}\nB = {args.run_b}")
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    if output is not None:
+    if output is not None:  # written before anything is printed: a closed pipe cannot stop it
         with output as staging:
             table.to_csv(staging / "compare.csv", index=False, float_format="%.6g")
             plot_comparison(table, staging / "compare.png", str(args.run_a), str(args.run_b))
             output.publish()
+    print(f"A = {args.run_a}\nB = {args.run_b}")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    if output is not None:
         print(f"written: {args.out / 'compare.csv'}")
     return 0
 

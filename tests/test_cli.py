@@ -103,7 +103,8 @@ def test_a_reader_that_goes_away_is_not_an_error(tmp_path):
     script = ("import sys\nfrom yafs_safetail.cli import run_cli\n"
               "def main(argv):\n    for i in range(100000):\n        print('line', i)\n"
               "sys.exit(run_cli(main, []))\n")
-    done = subprocess.run(f"{sys.executable} -c \"{script}\" | head -1", shell=True,
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(f"{sys.executable} -c \"{script}\" | head -1; exit ${{PIPESTATUS[0]}}",
+                          shell=True, executable="/bin/bash", capture_output=True, text=True, timeout=120)
     assert done.stdout == "line 0\n"
     assert done.stderr == "", done.stderr
+    assert done.returncode == 141  # as a tool killed by SIGPIPE: what followed was not done

@@ -22,6 +22,7 @@ from yafs_safetail.logs import configure_logging, verbosity_level
 
 EXIT_BAD_INPUT = 2
 EXIT_TERMINATED = 128 + signal.SIGTERM
+EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
 
 
 class Terminated(KeyboardInterrupt):
@@ -151,11 +152,12 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     try:
         code = main(argv)
     except BrokenPipeError:
-        # The reader went away (``... | head``): like any Unix tool, stop without a word. The
-        # results are already written; stdout is pointed at /dev/null so that Python's flush
-        # at exit does not fail on the closed pipe again.
+        # The reader went away (``... | head``): stop without a word and with the status a
+        # Unix tool killed by SIGPIPE has, since what was left to do after the print is not
+        # done. stdout is pointed at /dev/null so that Python's flush at exit does not fail
+        # on the closed pipe again.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
+        return EXIT_BROKEN_PIPE
     except BaseException as error:
         # SIGTERM raised inside library code may come out as another exception (an import
         # interrupted by it becomes an ImportError): the flag says what really happened.
