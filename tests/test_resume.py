@@ -160,3 +160,23 @@ def test_a_truncated_checkpoint_is_one_line(tmp_path):
 def test_resume_needs_a_training_run(tmp_path):
     one_error_line(run("--uc", "1", "--out", tmp_path / "run", *SMALL, "--yafs-csv", "--resume"),
                    "--resume", "--yafs-csv")
+
+
+def test_the_checkpoint_is_gone_before_the_results_appear(tmp_path, monkeypatch):
+    # A kill right after the results folder appears (a campaign then skips the finished run)
+    # must not leave its checkpoint behind for ever: it goes before the rename.
+    from yafs_safetail.runs.output import StagedOutput
+
+    seen: list[bool] = []
+    real_publish = StagedOutput.publish
+
+    def publish(self):  # type: ignore[no-untyped-def]
+        seen.append(checkpoint_folder(self.target).exists())
+        real_publish(self)
+
+    monkeypatch.setattr(StagedOutput, "publish", publish)
+    config = ExperimentConfig(use_case=1, out_dir=tmp_path / "run", steps_scale=0.02,
+                              redundancy_levels=(1,), figures=False, progress=False, workers=1,
+                              checkpoint_every_s=0.0)
+    run_experiment(config)
+    assert seen == [False] and (tmp_path / "run" / "requests.csv").is_file()

@@ -11,7 +11,8 @@ results files as an uninterrupted one.
 The checkpoint belongs to one configuration (the campaign run id of its settings and code
 version, :func:`yafs_safetail.runs.grid.config_run_id`); ``--resume`` with any other refuses.
 The folder carries a marker file, and only a folder with the marker is ever replaced or
-removed; it is removed when the run's results are in place.
+removed; it is removed when the run's results are complete, just before they are renamed
+into place.
 
 The state is a pickle: it is read back only from a folder this tool made (the marker), by the
 same code version, never from elsewhere.

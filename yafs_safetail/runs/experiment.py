@@ -290,9 +290,13 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
                 summary = _run_into(staging, config, inputs, timings, started, checkpoints)
                 log.debug("time (s): %s", ", ".join(f"{part} {seconds:.2f}" for part, seconds in timings.items()))
                 log.info("UC%d run: done (%.1f s)", inputs.use_case.number, timings["total"])
+            # The results are complete: nothing left to resume. The checkpoint goes before the
+            # results are renamed into place (the lock is still ours, so it is no other run's
+            # checkpoint), so a run killed at any moment never leaves a finished folder beside
+            # a checkpoint, which a campaign, skipping the finished run, would never remove.
+            if checkpoints is not None:
+                discard_checkpoint(output.target)
             output.publish()
-            if checkpoints is not None:  # the results are in place: nothing to resume (the
-                discard_checkpoint(output.target)  # lock is still ours, so no other run's)
     except BaseException as error:
         if checkpoints is not None and checkpoints.written:
             error.add_note(f"training checkpoint kept in {checkpoint_folder(output.target)}: "
