@@ -31,6 +31,7 @@ from yafs_safetail.cli import (
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.runs.calibrate import (
     DEFAULT_SEEDS,
+    NU_CHOICES,
     CalibrationConfig,
     calibrate,
 )
@@ -43,6 +44,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="learner preset whose SafeTail enters the ratios (default paper)")
     parser.add_argument("--seeds", type=int_list, default=DEFAULT_SEEDS,
                         help="calibration seeds, disjoint from report seeds (default 1000,1001,1002)")
+    parser.add_argument("--nu", type=int_list, default=NU_CHOICES,
+                        help="values of ν the search tries (default "
+                             + ",".join(map(str, NU_CHOICES)) + ")")
     parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="fraction of the step budget per run (default 1)")
     parser.add_argument("--max-evaluations", type=positive_int, default=32,
@@ -58,7 +62,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = shlex.join(["python", "experiments/calibrate.py", *(sys.argv[1:] if argv is None else argv)])
     document = calibrate(CalibrationConfig(
         preset=args.preset, seeds=args.seeds, steps_scale=args.steps_scale,
-        max_evaluations=args.max_evaluations, workers=args.workers, out_dir=args.out,
+        max_evaluations=args.max_evaluations, nu_choices=tuple(args.nu), workers=args.workers,
+        out_dir=args.out,
         apply=args.apply, command=command,
     ))  # progress lines are logged (stderr; none with --quiet)
     print(f"best: {document['parameters']} ({document['readings']['load_start']} load start), "

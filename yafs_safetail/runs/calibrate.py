@@ -79,6 +79,7 @@ class CalibrationConfig:
         steps_scale: fraction of the preset's step budget per run (1 = the paper's).
         max_evaluations: candidates evaluated at most (each is one run per seed).
         refine_best: discrete choices refined by the coordinate search.
+        nu_choices: the values of ν the discrete sweep tries (``--nu``; within 1..5).
         workers: runs in parallel (separate processes).
         out_dir: where ``evaluations.csv`` and ``calibration.json`` go.
         apply: also install the result as the package's calibration file.
@@ -90,6 +91,7 @@ class CalibrationConfig:
     steps_scale: float = 1.0
     max_evaluations: int = 32
     refine_best: int = 2
+    nu_choices: tuple[int, ...] = NU_CHOICES
     workers: int = 2
     out_dir: Path = Path("results/calibration")
     apply: bool = False
@@ -243,10 +245,15 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
         log = logging.getLogger(__name__).info
     if len(set(config.seeds)) != len(config.seeds) or not config.seeds:
         raise CalibrationRunError(f"--seeds: give distinct seeds, got {list(config.seeds)}")
-    if config.max_evaluations < len(LOAD_STARTS) * len(NU_CHOICES):
+    low, high, _ = CALIBRATED_PARAMETERS["nu"]
+    if (not config.nu_choices or len(set(config.nu_choices)) != len(config.nu_choices)
+            or any(not low <= nu <= high for nu in config.nu_choices)):
         raise CalibrationRunError(
-            f"--max-evaluations: at least {len(LOAD_STARTS) * len(NU_CHOICES)} (one per discrete "
-            f"choice), got {config.max_evaluations}"
+            f"--nu: give distinct values in {low:g}..{high:g}, got {list(config.nu_choices)}")
+    n_discrete = len(LOAD_STARTS) * len(config.nu_choices)
+    if config.max_evaluations < n_discrete:
+        raise CalibrationRunError(
+            f"--max-evaluations: at least {n_discrete} (one per discrete choice), got {config.max_evaluations}"
         )
     started = time.perf_counter()
     config.out_dir.mkdir(parents=True, exist_ok=True)
@@ -254,7 +261,7 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
     try:
         # 1. every discrete choice at the middle of the continuous ranges
         sweep = [dict(CONTINUOUS_START, load_start=start, nu=nu)
-                 for start in LOAD_STARTS for nu in NU_CHOICES]
+                 for start in LOAD_STARTS for nu in config.nu_choices]
         ranked = sorted(evaluator.score_many(sweep), key=lambda e: e.objective)
         # 2. refine the best discrete choices
         refined = [_coordinate_search(evaluator, e) for e in ranked[: config.refine_best]]
@@ -280,9 +287,10 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
             "seeds": list(config.seeds),
             "steps_scale": config.steps_scale,
             "evaluations": len(evaluator.history),
-            "search": "discrete sweep (load start x nu) at the middle of the ranges, then a "
-                      "coordinate search with halving steps on the best "
-                      f"{config.refine_best}",
+            "search": "discrete sweep (load start x nu in "
+                      + ",".join(map(str, config.nu_choices))
+                      + ") at the middle of the ranges, then a coordinate search with halving "
+                      f"steps on the best {config.refine_best}",
             "ranges": {k: [lo, hi] for k, (lo, hi, _) in CALIBRATED_PARAMETERS.items()},
             "date": datetime.date.today().isoformat(),
             "command": config.command,
