@@ -62,7 +62,9 @@ def _parser() -> ArgumentParser:
     parser.add_argument("--uc", type=int, required=True, choices=USE_CASES,
                         help="use case: 1 object detection, 2 instance segmentation, 3 noise removal")
     parser.add_argument("--preset", default="paper", choices=PRESET_NAMES,
-                        help="learner preset (default: paper = Table I verbatim)")
+                        help="learner preset (default: paper = Table I with the readings under "
+                             "which it learns, in the calibrated world; paper-literal = Table I "
+                             "verbatim; tuned = ours; docs/deviations.md)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="the run's seed (default 0)")
     parser.add_argument("--out", type=Path, default=None,
                         help="results folder (default results/uc<N>-<preset>-s<seed>, plus "

@@ -41,7 +41,7 @@ def test_script_on_a_tiny_budget_writes_results_and_leaves_the_package_alone(tmp
     out = tmp_path / "cal"
     done = subprocess.run(
         [sys.executable, str(SCRIPT), "--steps-scale", "0.02", "--max-evaluations", "8",
-         "--seeds", "1000", "--out", str(out)],
+         "--seeds", "1000", "--nu", "2,3", "--out", str(out)],
         capture_output=True, text=True, cwd=REPOSITORY, timeout=900,
     )
     assert done.returncode == 0, done.stderr[-2000:]
@@ -52,12 +52,15 @@ def test_script_on_a_tiny_budget_writes_results_and_leaves_the_package_alone(tmp
     assert document["provenance"]["evaluations"] == 8
     evaluations = pd.read_csv(out / "evaluations.csv")
     assert len(evaluations) == 8
+    assert set(evaluations["nu"]) == {2, 3}  # --nu bounds the search
+    assert "nu in 2,3" in document["provenance"]["search"]
     assert evaluations["objective"].min() == pytest.approx(document["provenance"]["objective_value"],
                                                            abs=1e-6)
 
 
 def test_bad_arguments_are_one_line_errors(tmp_path):
-    for args in (("--seeds", "5,5"), ("--max-evaluations", "3"), ("--preset", "x")):
+    for args in (("--seeds", "5,5"), ("--max-evaluations", "3"), ("--preset", "x"),
+                 ("--nu", "0,2"), ("--nu", "2,2")):
         done = subprocess.run([sys.executable, str(SCRIPT), *args, "--out", str(tmp_path / "x")],
                               capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
         assert done.returncode == 2, args
