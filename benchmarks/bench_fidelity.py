@@ -35,7 +35,7 @@ sys.path.insert(0, str(REPOSITORY / "experiments"))
 import pandas as pd  # noqa: E402
 import reproduce_all  # noqa: E402
 
-from yafs_safetail import fidelity  # noqa: E402
+from yafs_safetail.results import fidelity  # noqa: E402
 from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment  # noqa: E402
 
 GOALS = {"ratios": 0.8, "held-out": 0.7}
@@ -58,7 +58,8 @@ def main() -> None:
         # The UC1 default run, timed alone (reproduce_all's runs share the machine's cores).
         started = time.perf_counter()
         run_experiment(ExperimentConfig(use_case=1, preset=args.preset, seed=0,
-                                        out_dir=Path(scratch) / "uc1", progress=False))
+                                        out_dir=Path(scratch) / "uc1", progress=False,
+                                        steps_scale=float(args.steps_scale)))
         uc1_s = time.perf_counter() - started
 
     counts = fidelity.counts(card)
@@ -69,13 +70,15 @@ def main() -> None:
     access = card[card["kind"] == "access_rate"]
     for row in access.itertuples(index=False):
         print(f"access_rate_uc{row.use_case}={row.ours:.3f}")
-    print(f"uc1_default_run_s={uc1_s:.1f}")
+    full_budget = float(args.steps_scale) == 1.0
+    # The time goal is the full default run's; a smaller budget's time is printed under its own name.
+    print(f"uc1_default_run_s={uc1_s:.1f}" if full_budget else f"uc1_run_s_at_scale_{args.steps_scale}={uc1_s:.1f}")
     met = {
         "ratios": counts["ratios"][0] >= GOALS["ratios"] * counts["ratios"][1],
         "held-out": counts["held-out"][0] >= GOALS["held-out"] * counts["held-out"][1],
         "claims": counts["claims"][0] == counts["claims"][1],
         "access": bool((access["ours"] <= fidelity.ACCESS_RATE_GOAL).all()),
-        "uc1_time": uc1_s <= 30.0,
+        "uc1_time": full_budget and uc1_s <= 30.0,
     }
     print("goals_met=" + ",".join(f"{k}:{'yes' if v else 'no'}" for k, v in met.items()))
 

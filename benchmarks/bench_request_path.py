@@ -14,6 +14,7 @@ internal calls are left out (the core is a library the project uses). Prints eac
 
 from __future__ import annotations
 
+import argparse
 import collections
 import sys
 import tempfile
@@ -42,6 +43,7 @@ def module_of(filename: str) -> str | None:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
     use_case = get_use_case(1)
     scenario = load_scenario(DEFAULT_TOPOLOGY, DEFAULT_PLACEMENT)
     world = build_world(scenario, use_case, load_inputs(use_case), 4, seed=0, phase="train",

@@ -60,7 +60,10 @@ CONTINUOUS_STEPS = {"load_peak_users": 0.5, "bandwidth_share_exponent": 0.25,
 #: in log scale for the fallback multiple).
 CONTINUOUS_START = {"load_peak_users": 4.5, "bandwidth_share_exponent": 0.5,
                     "fallback_compute_multiple": 8.0}
-NU_CHOICES = (1, 2, 3, 4)
+#: The values of ν the search tries. §III chooses ν "reflecting the fact that each edge server
+#: often handles multiple parallel instances", so ν = 1 (a server running the service alone) is
+#: not a reading of the paper (docs/deviations.md D8).
+NU_CHOICES = (2, 3, 4, 5)
 EVALUATIONS_FILE = "evaluations.csv"
 RESULT_FILE = "calibration.json"
 
