@@ -327,6 +327,58 @@ def test_a_publish_killed_between_its_renames_loses_nothing(tmp_path, monkeypatc
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
 
 
+def test_an_earlier_run_aside_is_kept_when_something_else_took_the_target(tmp_path, monkeypatch):
+    # A publish killed between its renames, then someone puts a file where the results were:
+    # the earlier run cannot go back, and it must not be removed either.
+    from yafs_safetail.runs import output
+
+    target = tmp_path / "run"
+    kept = earlier_results(target)
+    real_replace = os.replace
+    renames = []
+
+    def replace_then_die(src, dst):  # type: ignore[no-untyped-def]
+        real_replace(src, dst)
+        renames.append(dst)
+        raise KeyboardInterrupt
+
+    staged = output.StagedOutput(target, overwrite=True)
+    with pytest.raises(KeyboardInterrupt):
+        with staged as staging:
+            (staging / "run.json").write_text("{}")
+            monkeypatch.setattr(output.os, "replace", replace_then_die)
+            staged.publish()
+    monkeypatch.setattr(output.os, "replace", real_replace)
+    target.write_text("a user's file\n")
+    with pytest.raises(OutputError):
+        with output.StagedOutput(target, overwrite=False):
+            pass
+    aside = list(tmp_path.glob(".run.previous-*/run"))
+    assert len(aside) == 1 and snapshot(aside[0]) == kept
+    assert target.read_text() == "a user's file\n"
+
+
+def test_discarding_a_checkpoint_removes_only_the_tools_files(tmp_path):
+    from yafs_safetail.runs.checkpoint import (
+        CHECKPOINT_MARKER,
+        checkpoint_folder,
+        discard_checkpoint,
+    )
+
+    target = tmp_path / "run"
+    folder = checkpoint_folder(target)
+    folder.mkdir()
+    (folder / CHECKPOINT_MARKER).touch()
+    (folder / "training.pickle").write_bytes(b"x")
+    (folder / "notes.txt").write_text("mine\n")
+    discard_checkpoint(target)
+    assert sorted(p.name for p in folder.iterdir()) == ["notes.txt"]
+    (folder / "notes.txt").unlink()
+    (folder / CHECKPOINT_MARKER).touch()
+    discard_checkpoint(target)
+    assert not folder.exists()  # nothing else inside: the folder goes too
+
+
 def test_sigkill_at_random_points_never_loses_the_earlier_run(tmp_path):
     # Fault injection: a run replacing an earlier one (--overwrite) is killed outright at
     # seeded random moments from start-up to the end. Whatever the moment, the target holds

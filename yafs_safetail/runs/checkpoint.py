@@ -20,9 +20,9 @@ same code version, never from elsewhere.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
-import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -141,7 +141,14 @@ def has_checkpoint(target: Path) -> bool:
 
 
 def discard_checkpoint(target: Path) -> None:
-    """Remove the checkpoint folder of ``target``'s run (only if this tool made it)."""
+    """Remove the checkpoint of ``target``'s run: only the files this tool writes there (the
+    checkpoint, a partial one, the marker), then the folder if that leaves it empty; anything
+    else someone put inside stays, and so does the folder."""
     folder = checkpoint_folder(target)
-    if folder.is_dir() and not folder.is_symlink() and (folder / CHECKPOINT_MARKER).is_file():
-        shutil.rmtree(folder, ignore_errors=True)
+    if not (folder.is_dir() and not folder.is_symlink() and (folder / CHECKPOINT_MARKER).is_file()):
+        return
+    for ours in [folder / CHECKPOINT_FILE, *folder.glob(".training-*.partial"), folder / CHECKPOINT_MARKER]:
+        if ours.is_file() and not ours.is_symlink():
+            ours.unlink(missing_ok=True)
+    with contextlib.suppress(OSError):  # not empty: something that is not ours is inside
+        folder.rmdir()

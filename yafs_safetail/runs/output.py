@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import json
+import logging
 import os
 import shutil
 import tempfile
@@ -194,6 +195,13 @@ class StagedOutput:
             earlier = aside / target.name
             if earlier.is_dir() and not (target.exists() or target.is_symlink()):
                 os.replace(earlier, target)
+            if earlier.exists() and not is_results_folder(target):
+                # The earlier run could not go back (something else is at the target now), and
+                # the publish did not finish either: keep it where it is rather than lose it.
+                logging.getLogger(__name__).warning(
+                    "%s: an earlier run is kept in %s (%s holds something else)", self.option,
+                    aside, target)
+                continue
             shutil.rmtree(aside, ignore_errors=True)
 
     def publish(self) -> None:
