@@ -355,9 +355,12 @@ class _Checkpoints:
         return cls(target, run_id, float(config.checkpoint_every_s), resume_from,
                    written=resume_from is not None)
 
+    def due(self) -> bool:
+        """Whether the next chance should write a checkpoint (``every_s`` has passed)."""
+        return time.perf_counter() - self.last_written >= self.every_s
+
     def write(self, policy: Any, next_step: int, records: list[Any], force: bool = False) -> None:
-        now = time.perf_counter()
-        if not force and now - self.last_written < self.every_s:
+        if not (force or self.due()):
             return
         # Set first: a kill during the write leaves the previous checkpoint or this one, both
         # of which --resume continues.
@@ -484,7 +487,8 @@ def _train(config: ExperimentConfig, inputs: _Inputs, policy: Any, yafs_dir: Pat
 
         def after_chunk(simulation: Simulation) -> None:
             # Only between two requests with nothing running can a fresh simulation take over.
-            if simulation.quiescent:
+            # Checked before the rows are joined: most chances write nothing.
+            if simulation.quiescent and checkpoints.due():
                 checkpoints.write(policy, simulation.next_step, earlier + simulation.records)
 
         records = earlier + simulate(world, policy, config.step_interval_s, path, progress,
