@@ -65,6 +65,23 @@ def is_gone(pid: int) -> bool:
     return "\nState:\tZ" in status  # a zombie has ended; only its parent's bookkeeping is left
 
 
+def lasting_children(process: subprocess.Popen, timeout_s: float = 120.0) -> list[int]:
+    """The run's worker processes: children still there half a second after they were first seen
+    (a short-lived helper the run starts, such as a git call, is not a worker); [] if the run
+    ended first."""
+    deadline = time.monotonic() + timeout_s
+    while process.poll() is None:
+        seen = set(children_of(process.pid))
+        if seen:
+            time.sleep(0.5)
+            lasting = sorted(seen & set(children_of(process.pid)))
+            if lasting:
+                return lasting
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.05)
+    return []
+
+
 def wait_for(condition, timeout_s: float = 120.0) -> None:  # type: ignore[no-untyped-def]
     deadline = time.monotonic() + timeout_s
     while not condition():
@@ -138,8 +155,7 @@ def test_sigterm_stops_workers_and_leaves_nothing_behind(tmp_path):
     out = tmp_path / "run"
     process = start("--uc", "1", "--out", out, "--steps-scale", "0.3", "--workers", "2",
                     "--no-figures", "--quiet")
-    wait_for(lambda: children_of(process.pid) or process.poll() is not None)
-    workers = children_of(process.pid)
+    workers = lasting_children(process)
     assert workers, "the run ended before its worker started"
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=120)
@@ -153,9 +169,8 @@ def test_sigkill_leaves_no_orphan_and_the_next_run_clears_its_folder(tmp_path):
     out = tmp_path / "run"
     process = start("--uc", "1", "--out", out, "--steps-scale", "0.3", "--workers", "2",
                     "--no-figures", "--quiet")
-    wait_for(lambda: children_of(process.pid) or process.poll() is not None)
-    workers = children_of(process.pid)
-    assert workers
+    workers = lasting_children(process)
+    assert workers, "the run ended before its worker started"
     process.kill()
     process.communicate(timeout=60)
     wait_for(lambda: all(is_gone(pid) for pid in workers), 30)  # PR_SET_PDEATHSIG
