@@ -15,7 +15,7 @@ line each, and the verdict:
 Usage::
 
     python benchmarks/bench_fidelity.py [--preset paper] [--seeds 0,1,2,3,4] [--out DIR]
-        [--steps-scale 1]
+        [--steps-scale 1] [--target-compute request|trace_median]
 
 About 15 minutes on 2 cores at the full budget. The run folders, REPORT.md and fidelity.csv stay
 in ``--out`` (default: a temporary folder, removed at the end).
@@ -47,12 +47,16 @@ def main() -> None:
     parser.add_argument("--seeds", default="0,1,2,3,4")
     parser.add_argument("--steps-scale", default="1")
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--target-compute", default=None,
+                        help="C(s_j) of Eq. 4 for the reproduction (default: the preset world's)")
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory(prefix="bench_fidelity_") as scratch:
         out = args.out or Path(scratch) / "reproduce"
+        options = [] if args.target_compute is None else ["--target-compute", args.target_compute]
         reproduce_all.main(["--uc", "1,2,3", "--preset", args.preset, "--seeds", args.seeds,
-                            "--steps-scale", args.steps_scale, "--no-figures", "--out", str(out)])
+                            "--steps-scale", args.steps_scale, "--no-figures", "--out", str(out),
+                            *options])
         card = pd.read_csv(out / fidelity.FIDELITY_FILE)
         card = card[card["preset"] == args.preset]
         # The UC1 default run, timed alone (reproduce_all's runs share the machine's cores).

@@ -44,7 +44,7 @@ from yafs_safetail.cli import (
     distinct_int_list,
     run_cli,
 )
-from yafs_safetail.edge.calibration import CalibrationError, read_calibration
+from yafs_safetail.edge.calibration import TARGET_COMPUTES, CalibrationError, read_calibration
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
 from yafs_safetail.figures_multiseed import (
@@ -254,6 +254,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="fraction of each preset's steps (default 1)")
     parser.add_argument("--out", type=Path, default=Path("results/reproduce"),
                         help="output folder (default results/reproduce)")
+    parser.add_argument("--target-compute", choices=TARGET_COMPUTES, default=None,
+                        help="C(s_j) of Eq. 4 for every run (default: each preset world's; "
+                             "docs/deviations.md D11)")
     parser.add_argument("--no-figures", action="store_true", help="skip the per-run figures")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders in --out that hold another configuration")
@@ -269,7 +272,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     refuse_protected(args.out)
     # Every (use case, preset, seed) is one run of a campaign: resumable, in parallel with
     # --workers, each run's folder where it always was.
-    specs = expand({"steps_scale": args.steps_scale, "figures": not args.no_figures},
+    base = {"steps_scale": args.steps_scale, "figures": not args.no_figures}
+    if args.target_compute is not None:
+        base["target_compute"] = args.target_compute
+    specs = expand(base,
                    {"use_case": list(args.uc), "preset": list(args.preset), "seed": list(args.seeds)},
                    name=RUN_FOLDER, source="reproduce_all.py")
     outcome = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,

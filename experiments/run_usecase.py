@@ -33,6 +33,7 @@ from yafs_safetail.cli import (
     positive_int,
     run_cli,
 )
+from yafs_safetail.edge.calibration import TARGET_COMPUTES
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.edge.scenario import default_placement
 from yafs_safetail.logs import is_terminal
@@ -102,6 +103,11 @@ def _parser() -> ArgumentParser:
                         help="load level: background users on a server at its busiest minute "
                              "(0 = idle, 4 = full at the peak; default: the preset world's, "
                              "recorded in run.json)")
+    parser.add_argument("--target-compute", choices=TARGET_COMPUTES, default=None,
+                        help="C(s_j) of Eq. 4: 'request', the median compute time at ν of the "
+                             "request's own input, or 'trace_median', the compute trace's median "
+                             "at ν for every request (default: the preset world's; "
+                             "docs/deviations.md D11)")
     parser.add_argument("--workers", type=positive_int, default=2,
                         help="processes: the baselines are tested in workers-1 other processes "
                              "while SafeTail trains (default 2; 1 = one process; same results)")
@@ -138,6 +144,7 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
         overwrite=args.overwrite, force=args.force, step_interval_s=args.step_interval_s,
         resume=args.resume, checkpoint_every_s=args.checkpoint_every_s,
         target_latency_s=args.target_latency_s, load_peak_users=args.load_peak_users,
+        target_compute=args.target_compute,
     )
 
 

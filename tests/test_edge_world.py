@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from yafs_safetail.edge.calibration import TARGET_COMPUTES, CalibrationError, WorldSettings
 from yafs_safetail.edge.latency import target_latency_s
 from yafs_safetail.edge.scenario import load_scenario
 from yafs_safetail.edge.usecases import USE_CASES, UnknownUseCaseError, get_use_case, knee_processes
@@ -13,6 +14,7 @@ from yafs_safetail.edge.world import (
     build_world,
     cpu_utilisation,
     memory_utilisation,
+    target_compute_by_request_s,
     trace_inputs,
     worst_case_copy_latency_s,
 )
@@ -172,3 +174,50 @@ def test_a_load_trace_shorter_than_an_episode_is_refused(tmp_path):
     with pytest.raises(WorldError, match=r"load\.csv: rows: 5 minutes, but an episode \(α_s\) needs at least 256"):
         build_world(scenario, use_case, inputs, 10, seed=0, phase="test")
     build_world(scenario, use_case, inputs, 10, seed=0, phase="test", episode_steps=5)  # fits
+
+
+def _inputs_scaling_with_gamma(traces, uc):
+    """Inputs whose compute 'model' grows with the first Γ column (UC2, UC3: the file size)."""
+    rough = trace_inputs(traces, uc, lambda g, k: np.zeros(len(k)))
+    median_by_k, typical = rough.median_compute_by_k_s, float(np.median(rough.request_gamma[:, 0]))
+    return trace_inputs(traces, uc, lambda g, k: median_by_k[np.asarray(k) - 1]
+                        * (0.5 + 0.5 * np.asarray(g)[:, 0] / typical))
+
+
+def test_request_target_compute_is_the_trace_median_scaled_to_the_input(traces):
+    uc = get_use_case(3)
+    inputs = _inputs_scaling_with_gamma(traces, uc)
+    trace = build_world(scenario(), uc, inputs, 300, seed=5, phase="test")
+    request = build_world(scenario(), uc, inputs, 300, seed=5, phase="test",
+                          settings=WorldSettings(target_compute="request"))
+    median_s = inputs.median_compute_by_k_s[uc.nu - 1]
+    np.testing.assert_array_equal(trace.target_compute_s, np.full(300, median_s))
+    predicted_s = inputs.predict_compute_s(request.gamma, np.full(300, uc.nu))
+    trace_predicted_s = inputs.predict_compute_s(inputs.request_gamma,
+                                                 np.full(inputs.request_gamma.shape[0], uc.nu))
+    np.testing.assert_allclose(request.target_compute_s,
+                               median_s * predicted_s / np.median(trace_predicted_s))
+    # A longer input gets a longer C(s_j), and the trace's own inputs centre on its median.
+    order = np.argsort(predicted_s)
+    assert np.all(np.diff(request.target_compute_s[order]) >= 0)
+    assert request.target_compute_s.min() < median_s < request.target_compute_s.max()
+    centred = target_compute_by_request_s(inputs, inputs.request_gamma, uc.nu, "request")
+    assert np.median(centred) == pytest.approx(median_s)
+    # Only τ's compute term changes; every latency the methods see is the same world.
+    np.testing.assert_allclose(request.target_s - trace.target_s,
+                               request.target_compute_s - trace.target_compute_s, atol=1e-12)
+    np.testing.assert_array_equal(request.compute_by_processes_s, trace.compute_by_processes_s)
+    np.testing.assert_array_equal(request.rtt_s, trace.rtt_s)
+
+
+def test_both_target_computes_agree_where_gamma_is_only_the_processes(traces):
+    uc = get_use_case(1)  # Γ = the number of parallel processes alone: every input is alike
+    inputs = inputs_for(traces, uc)
+    worlds = [build_world(scenario(), uc, inputs, 200, seed=3, phase="train",
+                          settings=WorldSettings(target_compute=reading)) for reading in TARGET_COMPUTES]
+    np.testing.assert_array_equal(worlds[0].target_s, worlds[1].target_s)
+
+
+def test_an_unknown_target_compute_is_refused():
+    with pytest.raises(CalibrationError, match="target_compute='mean' is out of range"):
+        WorldSettings(target_compute="mean")

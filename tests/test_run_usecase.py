@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -313,6 +314,23 @@ def test_target_latency_and_load_level_options(tmp_path):
     assert default["target_s"].nunique() > 1 and default["refused"].any()
 
 
+def test_target_compute_option_is_recorded_and_changes_only_the_target(tmp_path):
+    runs = {}
+    for reading in ("request", "trace_median"):
+        out = tmp_path / reading
+        done = run_script("--uc", "3", "--out", out, "--quiet", "--no-figures", *TINY, "--workers", "1",
+                          "--target-compute", reading)
+        assert done.returncode == 0, done.stderr
+        assert json.loads((out / "run.json").read_text())["world"]["target_compute"] == reading
+        runs[reading] = pd.read_csv(out / "requests.csv")
+    request, trace = runs["request"], runs["trace_median"]
+    # UC3's compute depends on the clip: the target follows the request's input or not.
+    assert not np.allclose(request["target_s"], trace["target_s"])
+    baselines = request["method"] != "SafeTail"
+    pd.testing.assert_frame_equal(request.loc[baselines, ["method", "request_id", "latency_s"]],
+                                  trace.loc[baselines, ["method", "request_id", "latency_s"]])
+
+
 def tmp_path_run_default(tmp_path: Path) -> Path:
     out = tmp_path / "default"
     done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY)
@@ -324,6 +342,7 @@ def tmp_path_run_default(tmp_path: Path) -> Path:
     (["--target-latency-s", "0"], "--target-latency-s"),
     (["--target-latency-s", "nan"], "--target-latency-s"),
     (["--load-peak-users", "-1"], "--load-peak-users"),
+    (["--target-compute", "mean"], "--target-compute"),
 ])
 def test_bad_target_or_load_is_one_line(tmp_path, args, fragment):
     done = run_script("--uc", "1", "--out", tmp_path / "run", *TINY, *args)

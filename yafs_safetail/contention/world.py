@@ -269,7 +269,7 @@ class ContentionWorld:
             self._block_target_s = world.target_s if self.settings.target_latency_s is not None \
                 else np.asarray(target_latency_s(
                 world.input_bytes, world.est_output_bytes, world.user_uplink_bps, world.user_downlink_bps,
-                self.user_median_propagation_s[users], world.median_compute_s), dtype=float)
+                self.user_median_propagation_s[users], world.target_compute_s), dtype=float)
         else:
             self._block_rtt_s, self._block_target_s = world.rtt_s, world.target_s
         return world

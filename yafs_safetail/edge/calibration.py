@@ -7,7 +7,7 @@ with one physically meaningful rule each, and two readings of the paper's text:
 
 * ``landed``: the first release's world (docs/edge_model.md), kept so that ``paper-literal``
   results stay what they were.
-* ``calibrated``: the readings of docs/deviations.md D7 plus the parameters fitted by
+* ``calibrated``: the readings of docs/deviations.md D7 and D11 plus the parameters fitted by
   ``experiments/calibrate.py`` against the *calibration subset* of the paper's numbers (use
   case 1's twelve ratios against the x = 1 baselines) and stored, with their provenance, in
   ``calibration.json`` next to this module.
@@ -29,6 +29,9 @@ import numpy as np
 CALIBRATION_FILE = Path(__file__).with_name("calibration.json")
 
 LOAD_STARTS = ("shared", "per_server")
+#: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
+#: median scaled to the request's own input (docs/deviations.md D11).
+TARGET_COMPUTES = ("trace_median", "request")
 WORLD_NAMES = ("landed", "calibrated")
 
 #: The parameters calibrate.py fits, with the range it searches and what each one means.
@@ -72,6 +75,11 @@ class WorldSettings:
         nu: ν of Eq. 4 for every use case; None: the use case's own (the knee rule).
         target_latency_s: a fixed target latency τ for every request (``--target-latency-s``);
             None: Eq. 4's heuristic per request (the paper).
+        target_compute: C(s_j) of Eq. 4. ``"trace_median"``: the compute trace's median at ν
+            processes, the same for every request; ``"request"``: that median times the
+            compute model's prediction for this request's Γ_j at ν over its median prediction
+            for the trace's inputs, i.e. the median compute time at ν of *this* input (the
+            two agree when Γ holds nothing but the processes, as in use case 1).
     """
 
     name: str = "landed"
@@ -82,6 +90,7 @@ class WorldSettings:
     fallback_compute_multiple: float | None = None
     nu: int | None = None
     target_latency_s: float | None = None
+    target_compute: str = "trace_median"
 
     def __post_init__(self) -> None:
         checks = {
@@ -96,6 +105,7 @@ class WorldSettings:
                                       and 1 <= self.nu <= 5),
             "target_latency_s": self.target_latency_s is None
             or (math.isfinite(self.target_latency_s) and self.target_latency_s > 0),
+            "target_compute": self.target_compute in TARGET_COMPUTES,
         }
         bad = [name for name, ok in checks.items() if not ok]
         if bad:
@@ -109,8 +119,9 @@ class WorldSettings:
 
 LANDED = WorldSettings()
 
-#: The readings every calibrated world uses (docs/deviations.md D7); not fitted.
-CALIBRATED_READINGS: Mapping[str, Any] = {"propagation_rtt_fraction": 0.5}
+#: The readings every calibrated world uses (docs/deviations.md D7, D11); not fitted.
+CALIBRATED_READINGS: Mapping[str, Any] = {"propagation_rtt_fraction": 0.5,
+                                          "target_compute": "request"}
 
 
 def load_levels(users: np.ndarray, peak_users: float, max_load: int) -> np.ndarray:

@@ -42,7 +42,8 @@ from yafs_safetail.edge.usecases import UseCase
 __all__ = [
     "DEFAULT_EPISODE_STEPS", "DEFAULT_MAX_LOAD", "EdgeWorld", "HopTables", "TraceInputs",
     "WorldError", "build_world", "cpu_utilisation", "link_scales", "load_inputs",
-    "memory_utilisation", "phase_seed_sequence", "trace_inputs", "worst_case_copy_latency_s",
+    "memory_utilisation", "phase_seed_sequence", "target_compute_by_request_s", "trace_inputs",
+    "worst_case_copy_latency_s",
 ]
 
 #: Paper Table I: maximum load of each edge server.
@@ -135,7 +136,9 @@ class EdgeWorld:
             transfer terms, per (step, server, contention level).
         output_transfer_by_level_s: Size(O)/min(λ^u_i, Λ^d), likewise for the output.
         compute_by_processes_s: compute time per (step, server, k - 1) for k = 1..max_load.
-        median_compute_s: C(s_j) of Eq. 4, the median compute time at ν processes.
+        median_compute_s: the compute trace's median compute time at ν processes.
+        target_compute_s: C(s_j) of Eq. 4 per step (``settings.target_compute``): the trace's
+            median at ν, or that median scaled to the step's own input.
         target_s: τ per step (Eq. 4).
         fallback_latency_s: the on-device fallback latency (assumption iv).
         nu: ν of Eq. 4 used for ``target_s``.
@@ -165,6 +168,7 @@ class EdgeWorld:
     output_transfer_by_level_s: np.ndarray
     compute_by_processes_s: np.ndarray
     median_compute_s: float
+    target_compute_s: np.ndarray
     target_s: np.ndarray
     fallback_latency_s: float
     nu: int
@@ -288,6 +292,38 @@ class EdgeWorld:
         return self.scenario.user_location
 
 
+def target_compute_by_request_s(inputs: TraceInputs, gamma: np.ndarray, nu: int,
+                                reading: str) -> np.ndarray:
+    """C(s_j) of Eq. 4 for every request: the median compute time at ν parallel instances.
+
+    ``"trace_median"``: the compute trace's median at ν, the same for every request.
+    ``"request"``: the median for *this* request's input: the trace's median at ν times the
+    compute model's prediction for the request's Γ_j at ν over the model's median prediction
+    for the trace's own inputs (the model's Gaussian noise is centred on its prediction, so the
+    prediction is the request's median; the ratio keeps the measured median as the anchor).
+    Where Γ holds nothing but the number of processes (use case 1) every input is alike and
+    both readings give the trace's median.
+
+    Args:
+        inputs: the traces and compute model.
+        gamma: Γ per request, shape (n_requests, g).
+        nu: ν.
+        reading: ``WorldSettings.target_compute``.
+
+    Returns:
+        Seconds per request, shape (n_requests,).
+    """
+    trace_median_s = float(inputs.median_compute_by_k_s[nu - 1])
+    n_requests = gamma.shape[0]
+    if reading == "trace_median" or gamma.shape[1] == 0:
+        return np.full(n_requests, trace_median_s)
+    trace_gamma = inputs.request_gamma
+    median_prediction_s = float(np.median(
+        inputs.predict_compute_s(trace_gamma, np.full(trace_gamma.shape[0], nu))))
+    prediction_s = inputs.predict_compute_s(gamma, np.full(n_requests, nu))
+    return trace_median_s * np.asarray(prediction_s, dtype=float) / median_prediction_s
+
+
 def build_world(
     scenario: EdgeScenario,
     use_case: UseCase,
@@ -375,6 +411,7 @@ def build_world(
         inputs, scenario.server_conditions, servers.rtt_quantiles,
         scales.server_extra_propagation_s, settings.propagation_rtt_fraction)
     median_compute_s = float(inputs.median_compute_by_k_s[nu - 1])
+    target_compute_s = target_compute_by_request_s(inputs, requests.gamma, nu, settings.target_compute)
     return EdgeWorld(
         seed=int(seed),
         phase=phase,
@@ -403,9 +440,10 @@ def build_world(
             output_bottleneck_bps(uplink, user_downlink_bps[:, None, None])),
         compute_by_processes_s=sampling.compute_by_processes(inputs, requests.gamma, servers.noise, max_load),
         median_compute_s=median_compute_s,
+        target_compute_s=target_compute_s,
         target_s=np.asarray(target_latency_s(
             requests.input_bytes, requests.est_output_bytes, user_uplink_bps, user_downlink_bps,
-            median_propagation_s[None, :], median_compute_s), dtype=float)
+            median_propagation_s[None, :], target_compute_s), dtype=float)
         if settings.target_latency_s is None else np.full(n_steps, settings.target_latency_s),
         fallback_latency_s=fallback_latency_s,
         nu=nu,

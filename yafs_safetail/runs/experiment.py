@@ -120,6 +120,9 @@ class ExperimentConfig:
             heuristic (``--target-latency-s``); None: Eq. 4 (the paper).
         load_peak_users: the load level: background users on a server at its load device's
             busiest minute (0 = idle servers, 4 = full at the peak); None: the world's own.
+        target_compute: C(s_j) of Eq. 4 (``--target-compute``): ``"request"``, the median
+            compute time at ν of the request's own input, or ``"trace_median"``, the compute
+            trace's median at ν for every request; None: the world's own (docs/deviations.md D11).
         overwrite: replace an earlier results folder at ``out_dir`` (``--overwrite``).
         force: run a budget beyond the disk and memory limits (``--force``).
         run_id: the campaign's identifier of this configuration (``runs.campaign``), recorded
@@ -151,6 +154,7 @@ class ExperimentConfig:
     world: WorldSettings | None = None
     target_latency_s: float | None = None
     load_peak_users: float | None = None
+    target_compute: str | None = None
     overwrite: bool = False
     force: bool = False
     run_id: str = ""
@@ -228,7 +232,7 @@ def _check(config: ExperimentConfig) -> _Inputs:
     n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
     check_budget(config, base, learner_config, test_steps, n_methods)
     settings = config.world or world_settings(PRESET_WORLDS[config.preset])
-    for name in ("target_latency_s", "load_peak_users"):  # the run's own options over the world's
+    for name in ("target_latency_s", "load_peak_users", "target_compute"):  # the run's own options over the world's
         value = getattr(config, name)
         if value is None:
             continue
