@@ -259,3 +259,21 @@ def test_load_sweep_never_writes_into_another_campaign(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "is not a load sweep's folder" in done.stderr
     assert (other / "SWEEP.md").read_text() == "mine"
+
+
+def test_a_users_own_target_follows_the_requests_input(tmp_path):
+    # Users 0-2 at the topology's own conditions, user 3 farther: τ is then built per user, and
+    # for users 0-2 it must be the block world's τ, compute term included (UC3's C(s_j) follows
+    # each clip: docs/deviations.md D11).
+    base = ContentionConfig(use_case=3, n_requests=300, users=4, load=0.2, block_requests=300, seed=4)
+    topology = ContentionWorld(base)
+    conditions = [int(c) for c in topology.scenario.server_conditions]
+    listed = tmp_path / "users.json"
+    listed.write_text(json.dumps({"users": [{"conditions": conditions}] * 3 + [{"conditions": [5] * 5}]}))
+    per_user = ContentionWorld(replace(base, user_conditions=listed))
+    at_topology = [r for r in range(300) if per_user.user[r] != 3]
+    assert 0 < len(at_topology) < 300
+    np.testing.assert_allclose([per_user.target_s(r) for r in at_topology],
+                               [topology.target_s(r) for r in at_topology], rtol=1e-12)
+    world = per_user.block_world(0)
+    assert world.settings.target_compute == "request" and np.ptp(world.target_compute_s) > 0.5
