@@ -31,6 +31,7 @@ from yafs_safetail.cli import (
     positive_int,
     run_cli,
 )
+from yafs_safetail.contention.run import TARGETS
 from yafs_safetail.contention.sweep import (
     DEFAULT_SWEEP_METHODS,
     SweepConfig,
@@ -93,6 +94,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--reward", choices=("paper", "no-free-miss"), default="paper",
                         help="SafeTail's reward: Eq. 5 (default) or Eq. 5 without case 3's free miss "
                              "with all servers (docs/contention.md)")
+    parser.add_argument("--target", choices=TARGETS, default="eq4",
+                        help="the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
+                             "observed-load (its compute term at the servers' load seen at dispatch; "
+                             "docs/deviations.md D12)")
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
@@ -122,7 +127,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                               background=args.background, topology=args.topology,
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
-        steps_scale=args.steps_scale, reward=args.reward)
+        steps_scale=args.steps_scale, reward=args.reward, target=args.target)
     if config.test_requests < 100:
         raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
@@ -148,7 +153,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_text_atomic(out / "run.json", json.dumps({
         "package_version": __version__, "command": command, "kind": "load_sweep",
         "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
-        "steps_scale": args.steps_scale, "preset": args.preset, "reward": args.reward,
+        "steps_scale": args.steps_scale, "preset": args.preset, "reward": args.reward, "target": args.target,
         "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
         "methods": list(methods), "safetail": not args.no_safetail, "train_requests": config.train_requests,
         "test_requests": config.test_requests, "topology": str(args.topology),

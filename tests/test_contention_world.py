@@ -21,7 +21,7 @@ from yafs_safetail.contention.world import (
 )
 from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, REPOSITORY, ScenarioError
 from yafs_safetail.edge.topology_io import load_topology
-from yafs_safetail.methods.policy import PolicyError
+from yafs_safetail.methods.policy import Policy, PolicyError
 from yafs_safetail.methods.registry import make_baseline
 
 SWEEP = REPOSITORY / "experiments" / "load_sweep.py"
@@ -277,3 +277,63 @@ def test_a_users_own_target_follows_the_requests_input(tmp_path):
                                [topology.target_s(r) for r in at_topology], rtol=1e-12)
     world = per_user.block_world(0)
     assert world.settings.target_compute == "request" and np.ptp(world.target_compute_s) > 0.5
+
+
+def test_the_observed_load_target_is_eq4_at_nu_and_grows_with_the_load():
+    world = ContentionWorld(ContentionConfig(n_requests=200, users=5, load=0.5, seed=6, queue=True,
+                                             block_requests=200))
+    nu = world.block_world(0).nu
+    traced = world.inputs.median_compute_by_k_s
+    eq4 = world.target_s(7)
+    # The median server running ν - 1 others: the new copy is the ν-th instance, Eq. 4's own case.
+    assert world.observed_load_target_s(7, [nu - 1] * 5) == pytest.approx(eq4)
+    idle, busy = world.observed_load_target_s(7, [0] * 5), world.observed_load_target_s(7, [3, 3, 3, 0, 0])
+    assert idle == pytest.approx(eq4 - traced[nu - 1] + traced[0])  # UC1: C(s_j) is the trace's median
+    assert idle < eq4 < busy == pytest.approx(eq4 - traced[nu - 1] + traced[3])
+    # Past the four slots a copy also waits: 8 jobs on 4 slots are two rounds of T(4).
+    assert world.observed_load_target_s(7, [7] * 5) == pytest.approx(eq4 - traced[nu - 1] + 2 * traced[3])
+
+
+class _TargetRecorder(Policy):
+    """One copy to server 0; keeps what it saw and the τ of each record it got back."""
+
+    def __init__(self, n_servers, rng):
+        super().__init__(n_servers, rng)
+        self.seen: dict[int, list[int]] = {}
+        self.targets: dict[int, float] = {}
+
+    def choose(self, observation):
+        self.seen[observation.step] = observation.server_active_users.tolist()
+        return (0,)
+
+    def feedback(self, record):
+        self.targets[record.request_id] = record.target_s
+        return record
+
+
+def test_feedback_records_carry_the_target_asked_for():
+    world = ContentionWorld(ContentionConfig(n_requests=300, users=10, load=0.6, seed=2, queue=True,
+                                             block_requests=300))
+    eq4, observed = _TargetRecorder(5, np.random.default_rng(0)), _TargetRecorder(5, np.random.default_rng(0))
+    run_policy(world, eq4)
+    run_policy(world, observed, target="observed-load")
+    assert eq4.targets == {r: pytest.approx(world.target_s(r)) for r in range(300)}
+    assert observed.targets == {r: pytest.approx(world.observed_load_target_s(r, observed.seen[r]))
+                                for r in range(300)}
+    assert observed.targets != eq4.targets
+    with pytest.raises(PolicyError, match="target 'queue-aware'"):
+        run_policy(world, eq4, target="queue-aware")
+
+
+def test_load_sweep_target_option(tmp_path):
+    out = tmp_path / "sweep"
+    done = subprocess.run([sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
+                           "--methods", "Oracle", "--target", "observed-load", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert json.loads((out / "run.json").read_text())["target"] == "observed-load"
+    assert json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]["target"] == "observed-load"
+    bad = subprocess.run([sys.executable, str(SWEEP), "--target", "queue", "--out", str(tmp_path / "b")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "--target" in bad.stderr and len(bad.stderr.splitlines()) == 1
+    assert not (tmp_path / "b").exists()

@@ -24,18 +24,31 @@ from yafs_safetail.record import RequestRecord
 WARMUP_FRACTION = 0.05
 
 
+#: What a policy's feedback records give as the request's target τ: ``"eq4"``, Eq. 4 (the paper);
+#: ``"observed-load"``, Eq. 4 with its compute term at the servers' load seen when the request
+#: was dispatched (``ContentionWorld.observed_load_target_s``; docs/deviations.md D12).
+TARGETS = ("eq4", "observed-load")
+
+
 class PolicyDispatcher:
     """The engine's view of a policy: choices checked, records built only when wanted."""
 
-    def __init__(self, world: ContentionWorld, policy: Policy) -> None:
+    def __init__(self, world: ContentionWorld, policy: Policy, target: str = "eq4") -> None:
+        if target not in TARGETS:
+            raise PolicyError(f"target {target!r}: expected one of {', '.join(TARGETS)}")
         self.world = world
         self.policy = policy
         self.mode = policy.dispatch
         self.wants_outcomes = type(policy).feedback is not Policy.feedback
         self._checked: set[tuple[int, ...]] = set()
         self._n = world.n_servers
+        # τ per request in flight, fixed when it is dispatched (observed-load target only).
+        self._observed_target_s: dict[int, float] | None = (
+            {} if target == "observed-load" and self.wants_outcomes else None)
 
     def choose(self, request: int, active_users: list[int]) -> Sequence[int]:
+        if self._observed_target_s is not None:
+            self._observed_target_s[request] = self.world.observed_load_target_s(request, active_users)
         observation = self.world.observation(request, active_users) if self.policy.observes else None
         chosen = self.policy.choose(observation)
         # Checked once per distinct choice (most policies repeat a few): a tuple is looked up
@@ -57,7 +70,8 @@ class PolicyDispatcher:
             request_id=outcome.request,
             time_emit_s=outcome.emit_s,
             latency_s=outcome.latency_s,
-            target_s=self.world.target_s(outcome.request),
+            target_s=self.world.target_s(outcome.request) if self._observed_target_s is None
+            else self._observed_target_s.pop(outcome.request),
             servers=tuple(sorted(outcome.servers)),
             n_servers=self._n,
             refused=outcome.refused,
@@ -87,13 +101,14 @@ class PolicyRun:
 
 
 def run_policy(world: ContentionWorld, policy: Policy, *, queue: bool | None = None,
-               cancel: bool | None = None) -> PolicyRun:
-    """Every request of ``world`` under ``policy`` (options default to the world's config)."""
+               cancel: bool | None = None, target: str = "eq4") -> PolicyRun:
+    """Every request of ``world`` under ``policy`` (options default to the world's config;
+    ``target``: the τ its feedback records carry, one of :data:`TARGETS`)."""
     if policy.n_servers != world.n_servers:
         raise PolicyError(f"{policy.name}: built for {policy.n_servers} servers, the topology has {world.n_servers}")
     started = time.perf_counter()
     result = run_engine(world.engine_settings(queue, cancel), world.emit_s.tolist(),
-                        world.config.block_requests, world.block, PolicyDispatcher(world, policy))
+                        world.config.block_requests, world.block, PolicyDispatcher(world, policy, target))
     return PolicyRun(policy.name, result, time.perf_counter() - started)
 
 

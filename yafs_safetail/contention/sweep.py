@@ -61,6 +61,8 @@ class SweepConfig:
         preset: SafeTail's learner preset.
         steps_scale: scales SafeTail's training budget (the preset's) and the test requests.
         reward: SafeTail's reward (``"paper"``, Eq. 5, or ``"no-free-miss"``).
+        target: the τ SafeTail's reward compares with (``"eq4"``, Eq. 4, or ``"observed-load"``,
+            its compute term at the servers' load seen at dispatch; ``contention.run.TARGETS``).
     """
 
     base: ContentionConfig
@@ -70,6 +72,7 @@ class SweepConfig:
     preset: str = "paper"
     steps_scale: float = 1.0
     reward: str = "paper"
+    target: str = "eq4"
 
     @property
     def test_requests(self) -> int:
@@ -113,14 +116,14 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
                                           inputs, scenario)
             safetail = _safetail_policy(train_world, config.preset, config.base.seed, config.train_requests,
                                         config.reward)
-            trained = run_policy(train_world, safetail)
+            trained = run_policy(train_world, safetail, target=config.target)
             log(f"load {load:g}: SafeTail trained on {config.train_requests} requests in {trained.wall_s:.1f} s")
             safetail.training = False
             policies.append((safetail, config.train_requests))
         for name in config.methods:
             policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name)), 0))
         for policy, train_requests in policies:
-            run = run_policy(test_world, policy)
+            run = run_policy(test_world, policy, target=config.target)
             row = {"load": load, "offered_load": test_world.offered_load(), **summarise(run),
                    "train_requests": train_requests}
             rows.append(row)
@@ -144,6 +147,7 @@ def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
         "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
         "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
         "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
+        "target": config.target,
     }
 
 
@@ -177,7 +181,8 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
         user_conditions=settings["user_conditions"])
     return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
                        safetail=settings["safetail"], preset=settings["preset"],
-                       steps_scale=settings["steps_scale"], reward=settings["reward"])
+                       steps_scale=settings["steps_scale"], reward=settings["reward"],
+                       target=settings.get("target", "eq4"))
 
 
 def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:

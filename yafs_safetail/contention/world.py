@@ -29,6 +29,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -326,6 +327,37 @@ class ContentionWorld:
         self.block_world(request // size)
         assert self._block_target_s is not None
         return float(self._block_target_s[request % size])
+
+    def observed_load_target_s(self, request: int, active_users: Sequence[int]) -> float:
+        """τ of request ``request`` with its compute term at the servers' observed load instead
+        of ν (the ``observed-load`` target, beyond the paper: docs/deviations.md D12).
+
+        Eq. 4 takes the median compute time at ν parallel instances, ν standing for how many
+        instances a server usually runs. Here that number is seen: with m the median over
+        servers of ℓ_i (our running and waiting copies and the background tenants), a new copy
+        is one of m + 1 jobs; up to the slots c (the servers' median capacity) they share the
+        CPU, so the compute term is C(s_j) × T(m + 1) / T(ν); beyond c, the copy also waits for
+        (m + 1 - c) / c rounds of T(c). T(k) is the traces' median compute time at k processes,
+        in proportion to k beyond the traced k, as the servers' speed tables take it. A fixed τ
+        of the settings (``target_latency_s``) stays fixed.
+        """
+        target_s = self.target_s(request)
+        if self.settings.target_latency_s is not None:
+            return target_s
+        size = self.config.block_requests
+        world = self.block_world(request // size)
+        traced_s = self.inputs.median_compute_by_k_s
+
+        def processes_s(k: int) -> float:
+            k_traced = len(traced_s)
+            return float(traced_s[k - 1]) if k <= k_traced else float(traced_s[-1]) * k / k_traced
+
+        jobs = int(np.median(np.asarray(active_users))) + 1
+        slots = max(1, int(np.median(self.capacity)))
+        running = min(jobs, slots)
+        effective_s = processes_s(running) * (1.0 + max(0, jobs - slots) / slots)
+        compute_s = float(world.target_compute_s[request % size])
+        return target_s - compute_s + compute_s * effective_s / processes_s(world.nu)
 
 
 def user_conditions(config: ContentionConfig, scenario: EdgeScenario, known: tuple[int, ...]) -> np.ndarray:
