@@ -346,18 +346,20 @@ class ContentionWorld:
             return target_s
         size = self.config.block_requests
         world = self.block_world(request // size)
-        traced_s = self.inputs.median_compute_by_k_s
-
-        def processes_s(k: int) -> float:
-            k_traced = len(traced_s)
-            return float(traced_s[k - 1]) if k <= k_traced else float(traced_s[-1]) * k / k_traced
-
+        slots, processes_s = self._typical_server_processes_s
         jobs = int(np.median(np.asarray(active_users))) + 1
-        slots = max(1, int(np.median(self.capacity)))
-        running = min(jobs, slots)
-        effective_s = processes_s(running) * (1.0 + max(0, jobs - slots) / slots)
+        effective_s = processes_s[min(jobs, slots)] * (1.0 + max(0, jobs - slots) / slots)
         compute_s = float(world.target_compute_s[request % size])
-        return target_s - compute_s + compute_s * effective_s / processes_s(world.nu)
+        return target_s - compute_s + compute_s * effective_s / processes_s[world.nu]
+
+    @cached_property
+    def _typical_server_processes_s(self) -> tuple[int, tuple[float, ...]]:
+        """The servers' median slots c and T(k) for k = 0..max(c, traced k) (T(0) unused), from
+        the same speed table the servers run at: T(k) = T(1) / speed(k)."""
+        slots = max(1, int(np.median(self.capacity)))
+        traced_s = self.inputs.median_compute_by_k_s
+        speeds = compute_speed_table(traced_s, 1.0, max(slots, len(traced_s)))
+        return slots, tuple(float(traced_s[0]) / speed for speed in speeds)
 
 
 def user_conditions(config: ContentionConfig, scenario: EdgeScenario, known: tuple[int, ...]) -> np.ndarray:
