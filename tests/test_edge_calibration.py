@@ -64,7 +64,7 @@ def test_readings_and_rules_change_only_what_they_say(inputs):
     nu = world(inputs, dataclasses.replace(LANDED, nu=1))
     assert nu.nu == 1 and base.nu == get_use_case(1).nu
     np.testing.assert_allclose(nu.target_s - base.target_s,
-                               inputs.median_compute_by_k_s[0] - base.median_compute_s)
+                               inputs.median_compute_by_k_s[0] - base.target_compute_s)
 
 
 def test_per_server_load_starts_are_independent_and_per_server_stable(inputs):

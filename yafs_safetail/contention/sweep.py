@@ -182,7 +182,7 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
     return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
                        safetail=settings["safetail"], preset=settings["preset"],
                        steps_scale=settings["steps_scale"], reward=settings["reward"],
-                       target=settings.get("target", "eq4"))
+                       target=settings["target"])
 
 
 def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:

@@ -347,7 +347,11 @@ class ContentionWorld:
         size = self.config.block_requests
         world = self.block_world(request // size)
         slots, processes_s = self._typical_server_processes_s
-        jobs = int(np.median(np.asarray(active_users))) + 1
+        # The median of the servers' ℓ_i without numpy (per request): the middle one, or the
+        # two middle ones' mean rounded down.
+        ordered = sorted(active_users)
+        half = len(ordered) // 2
+        jobs = (ordered[half] + ordered[~half]) // 2 + 1
         effective_s = processes_s[min(jobs, slots)] * (1.0 + max(0, jobs - slots) / slots)
         compute_s = float(world.target_compute_s[request % size])
         return target_s - compute_s + compute_s * effective_s / processes_s[world.nu]

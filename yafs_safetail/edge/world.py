@@ -136,7 +136,6 @@ class EdgeWorld:
             transfer terms, per (step, server, contention level).
         output_transfer_by_level_s: Size(O)/min(λ^u_i, Λ^d), likewise for the output.
         compute_by_processes_s: compute time per (step, server, k - 1) for k = 1..max_load.
-        median_compute_s: the compute trace's median compute time at ν processes.
         target_compute_s: C(s_j) of Eq. 4 per step (``settings.target_compute``): the trace's
             median at ν, or that median scaled to the step's own input.
         target_s: τ per step (Eq. 4).
@@ -167,7 +166,6 @@ class EdgeWorld:
     input_transfer_by_level_s: np.ndarray
     output_transfer_by_level_s: np.ndarray
     compute_by_processes_s: np.ndarray
-    median_compute_s: float
     target_compute_s: np.ndarray
     target_s: np.ndarray
     fallback_latency_s: float
@@ -410,7 +408,6 @@ def build_world(
     rtt_s, median_propagation_s = sampling.propagation(
         inputs, scenario.server_conditions, servers.rtt_quantiles,
         scales.server_extra_propagation_s, settings.propagation_rtt_fraction)
-    median_compute_s = float(inputs.median_compute_by_k_s[nu - 1])
     target_compute_s = target_compute_by_request_s(inputs, requests.gamma, nu, settings.target_compute)
     return EdgeWorld(
         seed=int(seed),
@@ -439,7 +436,6 @@ def build_world(
             requests.output_bytes[:, None, None],
             output_bottleneck_bps(uplink, user_downlink_bps[:, None, None])),
         compute_by_processes_s=sampling.compute_by_processes(inputs, requests.gamma, servers.noise, max_load),
-        median_compute_s=median_compute_s,
         target_compute_s=target_compute_s,
         target_s=np.asarray(target_latency_s(
             requests.input_bytes, requests.est_output_bytes, user_uplink_bps, user_downlink_bps,
