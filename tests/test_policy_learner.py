@@ -326,3 +326,66 @@ def test_target_vectors_are_what_training_sees() -> None:
     learner.observe(x[1], 30, 0.0)
     np.testing.assert_allclose(learner._targets[0], target_vector(4, -0.01, N), rtol=1e-6)
     np.testing.assert_allclose(learner._targets[1], target_vector(30, 0.0, N))
+
+
+# --- the value objective (contention world, docs/deviations.md D13) --------------------------
+
+
+def best_of(x: np.ndarray) -> int:
+    """The toy bandit's best action: depends on the state, as a server's load would."""
+    return 2 if x[0] > 1.0 else 5
+
+
+def toy_reward(x: np.ndarray, action: int) -> float:
+    # Positive and negative values: the value objective has no sign restriction.
+    return 0.5 if action == best_of(x) else -0.2 - 0.01 * action
+
+
+@pytest.mark.parametrize("sampling", ["recent", "uniform"])
+def test_value_objective_learns_which_action_pays(sampling: str) -> None:
+    config = tiny_config(objective="value", replay_sampling=sampling, updates_per_round=32, kappa=64,
+                         batch_size=32, epochs_per_round=1, replay_capacity=1024, hidden_widths=(32, 32),
+                         learning_rate=3e-3, epsilon_decay=0.0, epsilon_min=1.0)  # pure exploration
+    learner = SafeTailLearner(3, DIM, config, seed=5)  # 7 actions
+    env = np.random.default_rng(7)
+    fresh = env.uniform(0.0, 2.0, (200, DIM)).astype(np.float32)
+    before = np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh])
+    for _ in range(3000):
+        x = env.uniform(0.0, 2.0, DIM).astype(np.float32)
+        a = learner.act(x, explore=True)
+        learner.observe(x, a, toy_reward(x, a))
+    after = np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh])
+    assert before < 0.6 and after > 0.9, (before, after)
+    # The outputs are rewards, not probabilities: the best action's is near its 0.5.
+    values = learner.predict_probabilities(fresh[:50])
+    best = np.array([values[i, best_of(x)] for i, x in enumerate(fresh[:50])])
+    assert abs(float(np.median(best)) - 0.5) < 0.15
+
+
+def test_value_objective_observes_any_finite_reward_and_trains_only_the_taken_action() -> None:
+    learner = SafeTailLearner(N, DIM, tiny_config(objective="value"), seed=3)
+    x = states(20, seed=4)
+    learner.observe(x[0], 4, 0.7)  # a positive reward is valid here, not with §III's target
+    assert np.isnan(learner._targets[0]).sum() == learner.n_actions - 1 and learner._targets[0, 4] == 0.7
+    with pytest.raises(ValueError, match="out of range"):
+        learner.observe(x[1], 4, float("nan"))
+    with pytest.raises(ValueError, match="out of range"):
+        learner.observe(x[1], learner.n_actions, 0.0)
+    paper = SafeTailLearner(N, DIM, tiny_config(), seed=3)
+    with pytest.raises(ValueError, match="reward must be finite and <= 0"):
+        paper.observe(x[0], 4, 0.7)
+    with pytest.raises(ValueError, match="objective"):
+        tiny_config(objective="q-learning")
+
+
+def test_value_learner_saves_and_reloads(tmp_path: Path) -> None:
+    learner = SafeTailLearner(N, DIM, tiny_config(objective="value"), seed=8)
+    x = states(40, seed=9)
+    for i in range(32):
+        learner.observe(x[i], i % 31, 0.1 * (i % 3) - 0.1)
+    loaded = SafeTailLearner.load(learner.save(tmp_path / "value.keras"), training=True)
+    assert loaded.config.objective == "value"
+    np.testing.assert_array_equal(loaded.predict_probabilities(x), learner.predict_probabilities(x))
+    for i in range(16):  # it keeps training with the masked loss
+        loaded.observe(x[i], 2, 0.3)
+    assert loaded.n_training_rounds == 3 and np.isfinite(loaded.last_round_loss)

@@ -1,5 +1,6 @@
 """The SafeTail learner: ε-greedy decisions (Eq. 3), the §III target vector a reward becomes, and
-training rounds on them."""
+training rounds on them; or, with the ``"value"`` objective (beyond the paper, D13), the same
+network trained to predict each action's reward."""
 
 from __future__ import annotations
 
@@ -157,20 +158,29 @@ class SafeTailLearner:
         Args:
             state: The encoded state the action was chosen for.
             action: The action taken.
-            reward: Its Eq. 5 reward (<= 0).
+            reward: Its reward: Eq. 5's (<= 0) for the §III objective; any finite value for
+                the ``"value"`` objective, whose network learns to predict it.
 
         Returns:
             True if this call ran a training round.
 
         Raises:
-            ValueError: wrong state shape, action out of range or a positive reward.
+            ValueError: wrong state shape, action out of range, a positive reward (§III) or a
+                non-finite one.
         """
         if not self._training:
             return False
         if state.shape != (self.state_dim,):
             raise ValueError(f"state must have shape ({self.state_dim},), got {state.shape}")
         slot = self._n_buffered % self.config.replay_capacity
-        self._targets[slot] = target_vector(action, reward, self.n_servers)
+        if self.config.objective == "value":
+            if not 0 <= action < self.n_actions or not math.isfinite(reward):
+                raise ValueError(f"action {action!r} or reward {reward!r} out of range")
+            # Only the action taken has a target; the loss skips the NaN entries.
+            self._targets[slot] = np.nan
+            self._targets[slot, action] = reward
+        else:
+            self._targets[slot] = target_vector(action, reward, self.n_servers)
         self._states[slot] = state
         self._n_buffered += 1
         self._n_stored += 1
@@ -191,7 +201,7 @@ class SafeTailLearner:
                 for _ in range(c.updates_per_round)
             ])
             if self._round_updates is None:
-                self._round_updates = make_round_updates(self._model)
+                self._round_updates = make_round_updates(self._model, c.objective)
             self.last_round_loss = self._round_updates(states, targets, batches)
         else:
             losses = []

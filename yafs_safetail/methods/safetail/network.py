@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -31,8 +32,11 @@ def build_network(
 ) -> Any:
     """Build and compile the policy FNN.
 
-    ``state_dim`` inputs, one ReLU Dense layer per entry of ``config.hidden_widths``, a softmax
-    Dense layer over ``n_actions``, categorical cross-entropy, Adam(``config.learning_rate``).
+    ``state_dim`` inputs, one ReLU Dense layer per entry of ``config.hidden_widths``, a Dense
+    layer over ``n_actions`` and Adam(``config.learning_rate``). With the ``"target-vector"``
+    objective (§III) the last layer is a softmax fitted by categorical cross-entropy; with
+    ``"value"`` it is linear, each output an action's expected reward, fitted by
+    :func:`masked_squared_error` (only the action taken has a target).
     Each layer's Glorot-uniform initializer gets its own seed derived from ``init_seed``, so
     the initial weights do not depend on any global random state.
 
@@ -55,10 +59,11 @@ def build_network(
                 name=f"hidden{k}",
             )
         )
+    value = config.objective == "value"
     layers.append(
         keras.layers.Dense(
             n_actions,
-            activation="softmax",
+            activation="linear" if value else "softmax",
             kernel_initializer=keras.initializers.GlorotUniform(seed=int(layer_seeds[-1])),
             name="actions",
         )
@@ -68,7 +73,7 @@ def build_network(
     # on the plain, op-deterministic kernels.
     model.compile(
         optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate, name="adam"),
-        loss="categorical_crossentropy",
+        loss=masked_squared_error() if value else "categorical_crossentropy",
         jit_compile=False,
     )
     # Build Adam's slots now so that a policy saved before its first round reloads cleanly.
@@ -76,13 +81,34 @@ def build_network(
     return model
 
 
-def make_round_updates(model: Any) -> Any:
+@functools.cache
+def masked_squared_error() -> Any:
+    """The ``"value"`` objective's loss, registered with Keras so that saved policies reload.
+
+    Squared error on the entries of ``y_true`` that are finite (the action taken; the others
+    are NaN), summed per row: a value network learns only from the action it tried. Built on
+    first use, so that importing this module does not load TensorFlow.
+    """
+    import keras
+    import tensorflow as tf
+
+    @keras.saving.register_keras_serializable(package="yafs_safetail", name="masked_squared_error")
+    def loss(y_true: Any, y_pred: Any) -> Any:
+        known = tf.math.is_finite(y_true)
+        error = tf.where(known, y_pred - tf.where(known, y_true, 0.0), 0.0)
+        return tf.reduce_sum(tf.square(error), axis=-1)
+
+    return loss
+
+
+def make_round_updates(model: Any, objective: str = "target-vector") -> Any:
     """A function running a whole training round of minibatch Adam updates in one TensorFlow
     graph call.
 
     ``update(states, targets, batches)`` makes one update per row of ``batches`` (an integer
     array of shape (updates, batch size) indexing ``states`` and ``targets``), in order, with
-    the model's compiled loss and optimizer, and returns the mean loss. One graph call per
+    the objective's loss (the one :func:`build_network` compiles) and the model's optimizer,
+    and returns the mean loss. One graph call per
     round instead of one Keras call per minibatch: Keras's per-call overhead (milliseconds) is
     many times the arithmetic of this small network.
     """
@@ -94,7 +120,7 @@ def make_round_updates(model: Any) -> Any:
     # is expected here and says nothing about the run.
     tf.get_logger().setLevel("ERROR")
     # The same loss build_network compiles the model with.
-    loss_fn = keras.losses.CategoricalCrossentropy()
+    loss_fn = masked_squared_error() if objective == "value" else keras.losses.CategoricalCrossentropy()
     optimizer = model.optimizer
     variables = model.trainable_variables
 
@@ -106,7 +132,7 @@ def make_round_updates(model: Any) -> Any:
             x = tf.gather(states, batches[i])
             y = tf.gather(targets, batches[i])
             with tf.GradientTape() as tape:
-                loss = loss_fn(y, model(x, training=True))
+                loss = tf.reduce_mean(loss_fn(y, model(x, training=True)))
             optimizer.apply(tape.gradient(loss, variables), variables)
             total += loss
         return total / tf.cast(n_updates, tf.float32)

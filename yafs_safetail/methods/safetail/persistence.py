@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from yafs_safetail.methods.safetail.learner import SafeTailLearner
-from yafs_safetail.methods.safetail.network import NumpyForward
+from yafs_safetail.methods.safetail.network import NumpyForward, masked_squared_error
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 SIDECAR_SUFFIX = ".json"
@@ -165,6 +165,8 @@ def load_learner(path: str | Path, *, training: bool = False) -> SafeTailLearner
         explore_state, shuffle_state = info["explore_rng"], info["shuffle_rng"]
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise PolicyFileError(f"{sidecar_path}: malformed sidecar: {exc}") from exc
+    if config.objective == "value":
+        masked_squared_error()  # registers the loss the network was compiled with
     try:
         model = keras.models.load_model(path, safe_mode=True)
     except (ValueError, OSError) as exc:

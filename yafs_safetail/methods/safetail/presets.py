@@ -53,6 +53,11 @@ PAPER_UPDATES_PER_ROUND = 64
 PAPER_BATCH_SIZE = 32
 
 REPLAY_SAMPLING = ("recent", "uniform")
+#: What the network is trained to output: ``"target-vector"``, §III's softmax over actions fitted to
+#: the target vector V^t by cross-entropy (the paper); ``"value"``, each action's expected reward,
+#: fitted by squared error on the action taken (beyond the paper: the contention world's learner,
+#: docs/deviations.md D13).
+OBJECTIVES = ("target-vector", "value")
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,6 +89,7 @@ class LearnerConfig:
             the stored tuples; ``"uniform"``: a round makes ``updates_per_round`` Adam updates,
             each on ``batch_size`` tuples drawn at random (without replacement) from the memory.
         updates_per_round: Adam updates per round for ``replay_sampling="uniform"``.
+        objective: one of :data:`OBJECTIVES`; every preset uses ``"target-vector"``.
     """
 
     name: str
@@ -106,6 +112,7 @@ class LearnerConfig:
     epsilon_per_step: bool = False
     replay_sampling: str = "recent"
     updates_per_round: int = 1
+    objective: str = "target-vector"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "hidden_widths", tuple(int(w) for w in self.hidden_widths))
@@ -139,6 +146,10 @@ class LearnerConfig:
             raise ValueError(
                 f"LearnerConfig.replay_sampling must be one of {REPLAY_SAMPLING}, got "
                 f"{self.replay_sampling!r}"
+            )
+        if self.objective not in OBJECTIVES:
+            raise ValueError(
+                f"LearnerConfig.objective must be one of {OBJECTIVES}, got {self.objective!r}"
             )
         if self.replay_sampling == "uniform" and self.batch_size > self.kappa:
             raise ValueError(
