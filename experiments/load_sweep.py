@@ -43,7 +43,8 @@ from yafs_safetail.contention.sweep import (
 from yafs_safetail.contention.world import ContentionConfig, ContentionError
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.methods.registry import make_baseline
-from yafs_safetail.methods.safetail.presets import PRESET_NAMES
+from yafs_safetail.methods.safetail.policy import SAFETAIL_DISPATCH
+from yafs_safetail.methods.safetail.presets import OBJECTIVES, PRESET_NAMES
 from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.runs.campaign import (
     STATE_FILE,
@@ -98,6 +99,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
                              "observed-load (its compute term at the servers' load seen at dispatch; "
                              "docs/deviations.md D12)")
+    parser.add_argument("--learner", choices=OBJECTIVES, default="target-vector",
+                        help="SafeTail's training objective: target-vector (§III, default) or value (the "
+                             "same network predicting each action's latency-cost reward; docs/deviations.md D13)")
+    parser.add_argument("--safetail-dispatch", choices=SAFETAIL_DISPATCH, default="all",
+                        help="how SafeTail's subset is sent: all at once (default, the paper) or tied "
+                             "(cancelled once one copy starts running, as Tied)")
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
@@ -127,7 +134,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                               background=args.background, topology=args.topology,
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
-        steps_scale=args.steps_scale, reward=args.reward, target=args.target)
+        steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
+        dispatch=args.safetail_dispatch)
     if config.test_requests < 100:
         raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
@@ -153,7 +161,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_text_atomic(out / "run.json", json.dumps({
         "package_version": __version__, "command": command, "kind": "load_sweep",
         "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
-        "steps_scale": args.steps_scale, "preset": args.preset, "reward": args.reward, "target": args.target,
+        "steps_scale": args.steps_scale, "preset": args.preset, "reward": config.safetail_reward, "target": args.target,
+        "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
         "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
         "methods": list(methods), "safetail": not args.no_safetail, "train_requests": config.train_requests,
         "test_requests": config.test_requests, "topology": str(args.topology),

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from yafs_safetail.contention.run import run_policy, summarise
+from yafs_safetail.contention.run import PolicyDispatcher, run_policy, summarise
 from yafs_safetail.contention.world import (
     ContentionConfig,
     ContentionError,
@@ -337,3 +337,64 @@ def test_load_sweep_target_option(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--target" in bad.stderr and len(bad.stderr.splitlines()) == 1
     assert not (tmp_path / "b").exists()
+
+
+def test_the_latency_cost_reward():
+    from yafs_safetail.methods.safetail.reward import LOAD_PRICE, reward_latency_cost
+
+    # Latency in units of τ plus a price per job already on the chosen servers, on a log scale.
+    assert reward_latency_cost(1.0, 2.0, 0) == pytest.approx(-np.log(0.5))  # idle servers: copies are free
+    assert reward_latency_cost(1.0, 2.0, 7) == pytest.approx(-np.log(0.5 + 7 * LOAD_PRICE))
+    assert reward_latency_cost(0.1, 1.0, 1) > 0 > reward_latency_cost(4.0, 1.0, 1)
+    assert np.isfinite(reward_latency_cost(0.0, 1.0, 0))
+    with pytest.raises(ValueError, match="jobs_on_chosen"):
+        reward_latency_cost(1.0, 1.0, -1)
+
+
+def test_safetail_dispatch_and_value_reward_are_checked():
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.methods.safetail.spaces import StateScales
+
+    world = ContentionWorld(ContentionConfig(n_requests=300, users=10, load=0.6, seed=2, queue=True,
+                                             block_requests=300))
+    scales = StateScales.for_use_case(1)
+    paper = SafeTailLearner(5, 36, get_preset("paper", 1), 0)
+    with pytest.raises(PolicyError, match="latency-cost reward needs a learner with the value objective"):
+        SafeTailPolicy(5, np.random.default_rng(0), learner=paper, scales=scales, training=True,
+                       reward_name="latency-cost")
+    with pytest.raises(PolicyError, match="unknown dispatch 'hedge'"):
+        SafeTailPolicy(5, np.random.default_rng(0), learner=paper, scales=scales, training=True, dispatch="hedge")
+    tied = SafeTailPolicy(5, np.random.default_rng(0), learner=paper, scales=scales, training=False,
+                          dispatch="tied")
+    assert PolicyDispatcher(world, tied).mode == "tied" and SafeTailPolicy.dispatch == "all"
+    # Tied copies cancel each other once one starts: a copy runs for less server time than with "all".
+    race = SafeTailPolicy(5, np.random.default_rng(0), learner=paper, scales=scales, training=False)
+    tied_run, race_run = run_policy(world, tied), run_policy(world, race)
+    assert tied_run.result.n_copies.mean() > 1.5 and race_run.result.n_copies.mean() > 1.5
+    per_copy_s = [run.result.busy_s / run.result.n_copies.sum() for run in (tied_run, race_run)]
+    assert per_copy_s[0] < 0.8 * per_copy_s[1], per_copy_s
+
+
+def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
+    out = tmp_path / "sweep"
+    command = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
+               "--methods", "Tied", "--preset", "tuned", "--learner", "value", "--safetail-dispatch", "tied",
+               "--seed", "2", "--out", str(out)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    run = json.loads((out / "run.json").read_text())
+    assert (run["learner"], run["safetail_dispatch"], run["reward"]) == ("value", "tied", "latency-cost")
+    settings = json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]
+    assert (settings["learner"], settings["dispatch"]) == ("value", "tied")
+    frame = pd.read_csv(out / "sweep.csv")
+    assert list(frame["method"]) == ["SafeTail", "Tied"]
+    # Same seed, same bytes.
+    again = tmp_path / "again"
+    subprocess.run([*command[:-1], str(again)], check=True, capture_output=True, timeout=600)
+    assert (again / "sweep.csv").read_bytes() == (out / "sweep.csv").read_bytes()
+    bad = subprocess.run([*command[:-1], str(tmp_path / "b"), "--reward", "no-free-miss"],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "the value learner has its own reward" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()

@@ -16,24 +16,22 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from yafs_safetail.contention.run import SUMMARY_COLUMNS, run_policy, summarise
-from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
+from yafs_safetail.contention.world import ContentionConfig, ContentionError, ContentionWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline
-from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
+from yafs_safetail.methods.safetail.policy import SAFETAIL_DISPATCH, SafeTailPolicy
+from yafs_safetail.methods.safetail.presets import OBJECTIVES, get_preset, scaled_steps
 from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import method_rng
-
-if TYPE_CHECKING:
-    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +61,12 @@ class SweepConfig:
         reward: SafeTail's reward (``"paper"``, Eq. 5, or ``"no-free-miss"``).
         target: the τ SafeTail's reward compares with (``"eq4"``, Eq. 4, or ``"observed-load"``,
             its compute term at the servers' load seen at dispatch; ``contention.run.TARGETS``).
+        learner: SafeTail's objective (``presets.OBJECTIVES``): ``"target-vector"``, §III's, or
+            ``"value"``, the same network predicting each action's latency-cost reward
+            (docs/deviations.md D13; its reward is always ``"latency-cost"``, so ``reward``
+            stays ``"paper"``).
+        dispatch: how SafeTail's subset is sent: ``"all"`` (the paper) or ``"tied"``
+            (``SafeTailPolicy.dispatch``).
     """
 
     base: ContentionConfig
@@ -73,6 +77,22 @@ class SweepConfig:
     steps_scale: float = 1.0
     reward: str = "paper"
     target: str = "eq4"
+    learner: str = "target-vector"
+    dispatch: str = "all"
+
+    def __post_init__(self) -> None:
+        if self.learner not in OBJECTIVES:
+            raise ContentionError(f"learner {self.learner!r}: expected one of {', '.join(OBJECTIVES)}")
+        if self.dispatch not in SAFETAIL_DISPATCH:
+            raise ContentionError(f"dispatch {self.dispatch!r}: expected one of {', '.join(SAFETAIL_DISPATCH)}")
+        if self.learner == "value" and self.reward != "paper":
+            raise ContentionError(f"reward {self.reward!r}: the value learner has its own reward "
+                                  "(latency-cost); leave the reward at paper")
+
+    @property
+    def safetail_reward(self) -> str:
+        """The reward SafeTail is trained with (the value learner's own, or ``reward``)."""
+        return "latency-cost" if self.learner == "value" else self.reward
 
     @property
     def test_requests(self) -> int:
@@ -84,21 +104,21 @@ class SweepConfig:
 
 
 def _safetail_policy(world: ContentionWorld, preset: str, seed: int, train_steps: int,
-                     reward: str = "paper") -> SafeTailPolicy:
+                     reward: str = "paper", objective: str = "target-vector",
+                     dispatch: str = "all") -> SafeTailPolicy:
     # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
-    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
     from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
 
     use_case = world.use_case
-    config = get_preset(preset, use_case.number, train_steps=train_steps)
+    config = replace(get_preset(preset, use_case.number, train_steps=train_steps), objective=objective)
     learner = SafeTailLearner(
         world.n_servers,
         state_dim(world.n_servers, len(use_case.gamma_columns), len(world.scenario.user_location)),
         config, seed, metadata={"use_case": use_case.number, "world": "contention"})
     return SafeTailPolicy(world.n_servers, method_rng(seed, SAFETAIL), learner=learner,
                           scales=StateScales.for_use_case(use_case.number), training=True,
-                          reward_name=reward)
+                          reward_name=reward, dispatch=dispatch)
 
 
 def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: None) -> pd.DataFrame:
@@ -115,7 +135,7 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
             train_world = ContentionWorld(replace(test_config, phase="train", n_requests=config.train_requests),
                                           inputs, scenario)
             safetail = _safetail_policy(train_world, config.preset, config.base.seed, config.train_requests,
-                                        config.reward)
+                                        config.safetail_reward, config.learner, config.dispatch)
             trained = run_policy(train_world, safetail, target=config.target)
             log(f"load {load:g}: SafeTail trained on {config.train_requests} requests in {trained.wall_s:.1f} s")
             safetail.training = False
@@ -147,7 +167,7 @@ def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
         "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
         "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
         "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
-        "target": config.target,
+        "target": config.target, "learner": config.learner, "dispatch": config.dispatch,
     }
 
 
@@ -182,7 +202,8 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
     return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
                        safetail=settings["safetail"], preset=settings["preset"],
                        steps_scale=settings["steps_scale"], reward=settings["reward"],
-                       target=settings["target"])
+                       target=settings["target"], learner=settings["learner"],
+                       dispatch=settings["dispatch"])
 
 
 def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:

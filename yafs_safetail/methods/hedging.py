@@ -5,7 +5,6 @@ copies that cancel each other once one starts running)."""
 from __future__ import annotations
 
 from collections import deque
-from typing import ClassVar
 
 import numpy as np
 
@@ -35,7 +34,7 @@ class Hedge(Policy):
     the running 95th percentile of this method's own recent latencies (or at once if the first
     is refused)."""
 
-    dispatch: ClassVar[str] = "hedge"
+    dispatch = "hedge"
 
     def __init__(self, n_servers: int, rng: np.random.Generator, percentile: float = HEDGE_PERCENTILE) -> None:
         if not 0 < percentile < 100:
@@ -68,7 +67,7 @@ class Tied(Policy):
     """Copies to the two best-ranked servers; when one starts running, the other is cancelled
     (the cancellation takes that server's one-way propagation to arrive)."""
 
-    dispatch: ClassVar[str] = "tied"
+    dispatch = "tied"
 
     def __init__(self, n_servers: int, rng: np.random.Generator) -> None:
         self.name = "Tied"

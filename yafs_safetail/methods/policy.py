@@ -61,12 +61,13 @@ class Policy:
             the paper); ``"hedge"``, the first now and each next one if no reply came within
             :meth:`hedge_delay_s`; ``"tied"``, all at once, the others cancelled as soon as one
             starts running. The last two exist only in the contention world
-            (``yafs_safetail.contention``), where copies cost other requests something.
+            (``yafs_safetail.contention``), where copies cost other requests something. A class
+            attribute; SafeTail sets it per instance.
     """
 
     name: str = ""
     observes: ClassVar[bool] = True
-    dispatch: ClassVar[str] = "all"
+    dispatch: str = "all"
 
     def __init__(self, n_servers: int, rng: np.random.Generator) -> None:
         self.n_servers = int(n_servers)

@@ -10,9 +10,12 @@ import numpy as np
 
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.policy import Policy, PolicyError
-from yafs_safetail.methods.safetail.reward import REWARDS
+from yafs_safetail.methods.safetail.reward import REWARD_NAMES, REWARDS, reward_latency_cost
 from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, subset_of
 from yafs_safetail.record import RequestRecord
+
+#: How SafeTail's chosen subset can be dispatched (``Policy.dispatch``).
+SAFETAIL_DISPATCH = ("all", "tied")
 
 
 class SafeTailPolicy(Policy):
@@ -31,7 +34,11 @@ class SafeTailPolicy(Policy):
         scales: the state normalisation (``StateScales.for_use_case``).
         training: explore and learn (the training phase) or act greedily and frozen (testing).
         reward_name: the reward of :data:`~yafs_safetail.methods.safetail.reward.REWARDS`
-            (``"paper"``, Eq. 5, everywhere but the contention world's variant).
+            (``"paper"``, Eq. 5, everywhere but the contention world's variants;
+            ``"latency-cost"`` needs a learner with the ``"value"`` objective).
+        dispatch: how the contention world sends the chosen subset: ``"all"`` (every copy at
+            once, the paper) or ``"tied"`` (the copies cancel each other once one starts
+            running, as :class:`~yafs_safetail.methods.hedging.Tied`; contention world only).
 
     Attributes:
         decision_time_s: wall time spent encoding states and choosing actions.
@@ -39,7 +46,8 @@ class SafeTailPolicy(Policy):
     """
 
     def __init__(self, n_servers: int, rng: np.random.Generator, *, learner: Any,
-                 scales: StateScales, training: bool, reward_name: str = "paper") -> None:
+                 scales: StateScales, training: bool, reward_name: str = "paper",
+                 dispatch: str = "all") -> None:
         if learner.n_servers != n_servers:
             raise PolicyError(
                 f"SafeTail: the policy is for {learner.n_servers} servers, the topology has {n_servers}"
@@ -49,12 +57,18 @@ class SafeTailPolicy(Policy):
         self.learner = learner
         self.scales = scales
         self.training = training
-        if reward_name not in REWARDS:
-            raise PolicyError(f"SafeTail: unknown reward {reward_name!r}; valid: {', '.join(REWARDS)}")
-        self._reward = REWARDS[reward_name]
+        if reward_name not in REWARD_NAMES:
+            raise PolicyError(f"SafeTail: unknown reward {reward_name!r}; valid: {', '.join(REWARD_NAMES)}")
+        if reward_name == "latency-cost" and learner.config.objective != "value":
+            raise PolicyError("SafeTail: the latency-cost reward needs a learner with the value objective")
+        self._reward = REWARDS.get(reward_name)  # None: the latency-cost reward
+        if dispatch not in SAFETAIL_DISPATCH:
+            raise PolicyError(f"SafeTail: unknown dispatch {dispatch!r}; valid: {', '.join(SAFETAIL_DISPATCH)}")
+        self.dispatch = dispatch
         self.decision_time_s = 0.0
         self.training_time_s = 0.0
-        self._decisions: dict[int, tuple[np.ndarray, int, float]] = {}
+        # Per request in flight: the state, the action, ε, and Σ ℓ_i over the chosen servers.
+        self._decisions: dict[int, tuple[np.ndarray, int, float, int]] = {}
 
     def choose(self, observation: Observation | None) -> tuple[int, ...]:
         assert observation is not None
@@ -62,15 +76,19 @@ class SafeTailPolicy(Policy):
         state = encode_state(observation, self.scales)
         epsilon = self.learner.epsilon if self.training else 0.0
         action = self.learner.act(state, explore=self.training)
-        self._decisions[observation.step] = (state, action, epsilon)
         subset = subset_of(action, self.n_servers)
+        jobs = int(sum(observation.server_active_users[i] for i in subset)) if self._reward is None else 0
+        self._decisions[observation.step] = (state, action, epsilon, jobs)
         self.decision_time_s += time.perf_counter() - started
         return subset
 
     def feedback(self, outcome: RequestRecord) -> RequestRecord:
-        state, action, epsilon = self._decisions.pop(outcome.step)
-        value = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
-                       self.learner.config.delta)
+        state, action, epsilon, jobs = self._decisions.pop(outcome.step)
+        if self._reward is None:
+            value = reward_latency_cost(outcome.latency_s, outcome.target_s, jobs)
+        else:
+            value = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
+                                 self.learner.config.delta)
         if self.training:
             started = time.perf_counter()
             self.learner.observe(state, action, value)

@@ -71,5 +71,40 @@ def reward_no_free_miss(
     return value
 
 
-#: The rewards a SafeTail policy can be trained with, by name (``"paper"`` = Eq. 5).
+#: The latency-cost reward's price of a copy per job already on its server, as a share of the
+#: target τ. Chosen, not derived: the best of 0.003, 0.01, 0.03 and 0.1 on the use-case-1 load
+#: sweep with seed 0 only (docs/deviations.md D13); other seeds are the held-out measurement.
+LOAD_PRICE = 0.01
+
+
+def reward_latency_cost(latency_s: float, target_s: float, jobs_on_chosen: int) -> float:
+    """-log(L_R / τ + LOAD_PRICE · Σ ℓ_i over the chosen servers): not the paper's.
+
+    The reward the ``"value"`` learner predicts per action (the contention world,
+    docs/deviations.md D13): the request's latency in units of its target, plus what its
+    copies cost the others. A copy joining a server that runs ℓ_i jobs slows each of them
+    (processor sharing) or waits behind them, so it is priced by ℓ_i: copies to idle servers
+    are free, copies to busy ones are not, whatever the load the run was set to. On a log
+    scale so that a queue's long latencies do not swamp the fit. Higher is better; positive
+    when the request beats τ by more than its copies cost.
+
+    Args:
+        latency_s: L_R, seconds, finite and >= 0.
+        target_s: τ, seconds, finite and > 0.
+        jobs_on_chosen: Σ ℓ_i over the servers the action chose, as observed at dispatch.
+    """
+    if not (math.isfinite(latency_s) and latency_s >= 0.0):
+        raise ValueError(f"latency_s must be finite and >= 0, got {latency_s!r}")
+    if not (math.isfinite(target_s) and target_s > 0.0):
+        raise ValueError(f"target_s must be finite and > 0, got {target_s!r}")
+    if jobs_on_chosen < 0:
+        raise ValueError(f"jobs_on_chosen must be >= 0, got {jobs_on_chosen!r}")
+    # At least a sliver above 0: a request answered at once by idle servers would take log(0).
+    return -math.log(max(latency_s / target_s + LOAD_PRICE * jobs_on_chosen, 1e-6))
+
+
+#: The Eq. 5-shaped rewards a SafeTail policy can be trained with, by name (``"paper"`` = Eq. 5).
 REWARDS = {"paper": reward, "no-free-miss": reward_no_free_miss}
+#: Every reward name: those of :data:`REWARDS` and ``"latency-cost"``
+#: (:func:`reward_latency_cost`, for the ``"value"`` objective only).
+REWARD_NAMES = (*REWARDS, "latency-cost")
