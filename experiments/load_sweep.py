@@ -155,6 +155,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
     write_text_atomic(out / "SWEEP.md",
                       f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {args.seed})\n\n"
+                      f"SafeTail: preset `{args.preset}`, learner `{args.learner}`, reward `{config.safetail_reward}`, "
+                      f"target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n"
                       f"`{command}`\n\n" + markdown_table(table) + "\n\n## Goals\n\n"
                       + checks_markdown(frame))
     plot_sweep(frame, out)

@@ -390,6 +390,8 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
     assert (settings["learner"], settings["dispatch"]) == ("value", "tied")
     frame = pd.read_csv(out / "sweep.csv")
     assert list(frame["method"]) == ["SafeTail", "Tied"]
+    assert ("SafeTail: preset `tuned`, learner `value`, reward `latency-cost`, target `eq4`, dispatch `tied`."
+            in (out / "SWEEP.md").read_text())
     # Same seed, same bytes.
     again = tmp_path / "again"
     subprocess.run([*command[:-1], str(again)], check=True, capture_output=True, timeout=600)
