@@ -108,9 +108,9 @@ def make_round_updates(model: Any, objective: str = "target-vector") -> Any:
     ``update(states, targets, batches)`` makes one update per row of ``batches`` (an integer
     array of shape (updates, batch size) indexing ``states`` and ``targets``), in order, with
     the objective's loss (the one :func:`build_network` compiles) and the model's optimizer,
-    and returns the mean loss. One graph call per
-    round instead of one Keras call per minibatch: Keras's per-call overhead (milliseconds) is
-    many times the arithmetic of this small network.
+    and returns the mean loss. One graph call per round instead of one Keras call per
+    minibatch: Keras's per-call overhead (milliseconds) is many times the arithmetic of this
+    small network.
     """
     import keras
     import tensorflow as tf

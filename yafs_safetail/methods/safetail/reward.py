@@ -5,6 +5,13 @@ from __future__ import annotations
 import math
 
 
+def _check_latency_and_target(latency_s: float, target_s: float) -> None:
+    if not (math.isfinite(latency_s) and latency_s >= 0.0):
+        raise ValueError(f"latency_s must be finite and >= 0, got {latency_s!r}")
+    if not (math.isfinite(target_s) and target_s > 0.0):
+        raise ValueError(f"target_s must be finite and > 0, got {target_s!r}")
+
+
 def reward(
     latency_s: float, target_s: float, n_selected: int, n_servers: int, delta: float
 ) -> float:
@@ -38,10 +45,7 @@ def reward(
         ValueError: a non-finite or negative latency, a non-positive target, ``n_selected``
             outside 1..n, or a non-positive δ.
     """
-    if not (math.isfinite(latency_s) and latency_s >= 0.0):
-        raise ValueError(f"latency_s must be finite and >= 0, got {latency_s!r}")
-    if not (math.isfinite(target_s) and target_s > 0.0):
-        raise ValueError(f"target_s must be finite and > 0, got {target_s!r}")
+    _check_latency_and_target(latency_s, target_s)
     if n_servers < 1:
         raise ValueError(f"n_servers must be >= 1, got {n_servers!r}")
     if not 1 <= n_selected <= n_servers:
@@ -93,10 +97,7 @@ def reward_latency_cost(latency_s: float, target_s: float, jobs_on_chosen: int) 
         target_s: τ, seconds, finite and > 0.
         jobs_on_chosen: Σ ℓ_i over the servers the action chose, as observed at dispatch.
     """
-    if not (math.isfinite(latency_s) and latency_s >= 0.0):
-        raise ValueError(f"latency_s must be finite and >= 0, got {latency_s!r}")
-    if not (math.isfinite(target_s) and target_s > 0.0):
-        raise ValueError(f"target_s must be finite and > 0, got {target_s!r}")
+    _check_latency_and_target(latency_s, target_s)
     if jobs_on_chosen < 0:
         raise ValueError(f"jobs_on_chosen must be >= 0, got {jobs_on_chosen!r}")
     # At least a sliver above 0: a request answered at once by idle servers would take log(0).
