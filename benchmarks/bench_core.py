@@ -20,7 +20,9 @@ and seeds the global generators identically for both libraries (one script never
 Printed per script: median ``Sim.run`` seconds of each, the ratio of the medians, the
 median of the per-pair ratios, and whether the two libraries wrote byte-identical CSVs.
 ``--split`` also times the scripts' own selection, placement, population and monitor code
-called from ``Sim.run`` (the same code on both sides) and prints the ratio without it.
+called from ``Sim.run`` (the same code on both sides) and prints the ratio without it, and the
+ceiling: YAFS3's ``Sim.run`` over the time our ``Sim.run`` spends in that script code, the
+ratio a core that took no time at all would reach on that script.
 
 Run: ``python benchmarks/bench_core.py [--requests 20000]``
      ``python benchmarks/bench_core.py --yafs3 PATH [--repeats 5] [--scripts NAME ...] [--cpu] [--split]``
@@ -318,9 +320,10 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
     if split:
         print("'core': Sim.run minus the time spent in the script's own selection, placement, population")
         print("and monitor classes/functions (defined in the script's folder; the same code on both sides;")
-        print("timing them adds a little to both sides' Sim.run)")
+        print("timing them adds a little to both sides' Sim.run); 'ceiling': YAFS3's Sim.run over our")
+        print("time in that script code, the ratio a core taking no time at all would reach")
     print(f"{'script':<46} {'YAFS3 s':>9} {'ours s':>9} {'ratio':>7} {'pair med':>8} "
-          + (f"{'core YAFS3':>10} {'core ours':>9} {'ratio':>7}  " if split else "") + "CSVs")
+          + (f"{'core YAFS3':>10} {'core ours':>9} {'ratio':>7} {'ceiling':>8}  " if split else "") + "CSVs")
     with tempfile.TemporaryDirectory() as tmp:
         site = Path(tmp) / "site"
         site.mkdir()
@@ -362,7 +365,9 @@ def compare_with_yafs3(yafs3: Path, scripts: list[str], repeats: int, cpu: bool,
             core_theirs = statistics.median(t - u for t, u in times["yafs3"])
             core_ours = statistics.median(t - u for t, u in times["ours"])
             pairs = [a[0] / b[0] for a, b in zip(times["yafs3"], times["ours"], strict=False) if b[0] > 0]
-            core = (f"{core_theirs:10.3f} {core_ours:9.3f} {core_theirs / core_ours:6.2f}x  "
+            script_ours = statistics.median(u for _, u in times["ours"])
+            ceiling = f"{theirs / script_ours:7.2f}x" if script_ours > 0 else f"{'none':>8}"
+            core = (f"{core_theirs:10.3f} {core_ours:9.3f} {core_theirs / core_ours:6.2f}x {ceiling}  "
                     if split else "")
             print(f"{script:<46} {theirs:9.3f} {ours:9.3f} {theirs / ours:6.2f}x "
                   f"{statistics.median(pairs):7.2f}x {core}{verdict}", flush=True)

@@ -36,3 +36,42 @@ def test_fidelity_benchmark_small_budget(tmp_path):
     assert any(line.startswith("claims_hold=") and line.endswith("/9") for line in lines)
     assert lines[-1].startswith("goals_met=") and "uc1_time:no" in lines[-1]  # not the full budget
     assert (tmp_path / "fid" / "fidelity.csv").is_file()
+
+
+def test_core_benchmark_against_a_yafs3_checkout_small_budget(tmp_path):
+    # No YAFS3 checkout ships with the project, so the comparison runs against a stand-in: this
+    # core's own package under the name ``yafs`` and one tutorial-sized script. It checks the
+    # comparison machinery (alternating runs, import porting, CSV check, --split's columns),
+    # not YAFS3's speed.
+    import shutil
+
+    fake = tmp_path / "yafs3"
+    shutil.copytree(REPOSITORY / "yafs_safetail" / "yafs", fake / "src" / "yafs",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    for path in (fake / "src" / "yafs").rglob("*.py"):
+        path.write_text(path.read_text().replace("yafs_safetail.yafs", "yafs"))
+    script = fake / "tutorial_scenarios" / "01_basicExample" / "main.py"
+    script.parent.mkdir(parents=True)
+    script.write_text(
+        "import sys\n"
+        f"sys.path.insert(0, {str(REPOSITORY / 'tests')!r})\n"
+        "from yafs import core\n"
+        "from yafs_examples.yafs3_common import library\n"
+        "from yafs_examples.yafs3_scenarios import basic\n"
+        "lib = library(core.__name__.rpartition('.')[0])\n"
+        "class Routing(lib.path_routing.DeviceSpeedAwareRouting):  # the script's own code, timed by --split\n"
+        "    pass\n"
+        "lib.path_routing.DeviceSpeedAwareRouting = Routing\n"
+        "basic(lib, 'results')\n")
+    done = subprocess.run([sys.executable, str(REPOSITORY / "benchmarks" / "bench_core.py"), "--yafs3", str(fake),
+                           "--repeats", "1", "--split", "--scripts", "01_basic"],
+                          capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    header = next(line for line in done.stdout.splitlines() if line.startswith("script"))
+    assert "ceiling" in header
+    row = next(line for line in done.stdout.splitlines() if line.startswith("tutorial_scenarios/01"))
+    assert row.endswith("2/2 identical"), row
+    # script, YAFS3 s, ours s, ratio, pair median, core YAFS3, core ours, core ratio, ceiling, CSVs
+    columns = row.split()
+    assert len(columns) == 11 and all(c.endswith("x") for c in (columns[3], columns[4], columns[7], columns[8]))
+    assert float(columns[8][:-1]) > 0
