@@ -400,3 +400,24 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "the value learner has its own reward" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
+
+
+def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch):
+    # Requests of one block still complete after the next block has started; their τ must not
+    # rebuild their block's world (it did, back and forth, thousands of times).
+    import yafs_safetail.contention.world as world_module
+
+    built: list[str] = []
+    original = world_module.build_world
+
+    def counting(*args, **kwargs):
+        built.append(kwargs["phase"])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(world_module, "build_world", counting)
+    world = ContentionWorld(ContentionConfig(n_requests=3000, users=20, load=0.8, seed=1, queue=True,
+                                             block_requests=1000))
+    recorder = _TargetRecorder(5, np.random.default_rng(0))
+    run_policy(world, recorder)
+    assert sorted(built) == ["test:0", "test:1", "test:2", "test:background"]
+    assert recorder.targets == {r: pytest.approx(world.target_s(r)) for r in range(3000)}

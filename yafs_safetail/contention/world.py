@@ -173,7 +173,9 @@ class ContentionWorld:
         self._per_user = bool(np.any(self.conditions != np.asarray(self.scenario.server_conditions)))
         self._current: tuple[int, EdgeWorld] | None = None
         self._block_rtt_s: np.ndarray | None = None
-        self._block_target_s: np.ndarray | None = None
+        # τ per request, filled a block at a time as blocks are built: a request that completes
+        # after the next block has started reads its τ here instead of rebuilding its block.
+        self._target_s = np.full(len(self.emit_s), np.nan)
 
     @property
     def n_servers(self) -> int:
@@ -267,12 +269,15 @@ class ContentionWorld:
             self._block_rtt_s = self._user_rtt_s(world, phase, users)
             # τ (Eq. 4) from each request's user's ρ^μ_i, for the whole block at once (a fixed
             # τ of the settings needs no per-user value).
-            self._block_target_s = world.target_s if self.settings.target_latency_s is not None \
+            block_target_s = world.target_s if self.settings.target_latency_s is not None \
                 else np.asarray(target_latency_s(
                 world.input_bytes, world.est_output_bytes, world.user_uplink_bps, world.user_downlink_bps,
                 self.user_median_propagation_s[users], world.target_compute_s), dtype=float)
         else:
-            self._block_rtt_s, self._block_target_s = world.rtt_s, world.target_s
+            self._block_rtt_s, block_target_s = world.rtt_s, world.target_s
+        first = index * size
+        count = max(0, min(n_steps, self.n_requests - first))  # (a world has at least one step)
+        self._target_s[first:first + count] = block_target_s[:count]
         return world
 
     def _user_rtt_s(self, world: EdgeWorld, phase: str, users: np.ndarray) -> np.ndarray:
@@ -323,10 +328,11 @@ class ContentionWorld:
 
     def target_s(self, request: int) -> float:
         """τ (Eq. 4) of request ``request``, from its user's ρ^μ_i."""
-        size = self.config.block_requests
-        self.block_world(request // size)
-        assert self._block_target_s is not None
-        return float(self._block_target_s[request % size])
+        target_s = self._target_s[request]
+        if target_s != target_s:  # NaN: its block has not been built yet
+            self.block_world(request // self.config.block_requests)
+            target_s = self._target_s[request]
+        return float(target_s)
 
     def observed_load_target_s(self, request: int, active_users: Sequence[int]) -> float:
         """τ of request ``request`` with its compute term at the servers' observed load instead
