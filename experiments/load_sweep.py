@@ -8,6 +8,11 @@ mean_n_selected, fallback_rate, ...), OUT/SWEEP.md (the table and the goals of i
 computed), OUT/sweep_latency.png (p50 and p99 against load), OUT/sweep_copies.png and
 OUT/run.json (the settings and this command). SafeTail is trained at each load (the preset's
 training budget × --steps-scale) and tested greedily; see docs/contention.md.
+
+With --seeds 0,1,2 (instead of --seed) every seed's sweep goes into OUT/seed-<S>/ as above, and
+OUT/seeds.csv (every seed's sweep.csv rows, with a seed column) and OUT/SEEDS.md (SafeTail's p99
+over the best fixed method's per seed and load, and in how many seeds each goal holds) compare
+them.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +32,7 @@ from yafs_safetail.cli import (
     ArgumentParser,
     add_verbosity_options,
     configure_verbosity,
+    distinct_int_list,
     non_negative_int,
     positive_float,
     positive_int,
@@ -39,6 +46,7 @@ from yafs_safetail.contention.sweep import (
     load_point_specs,
     markdown_table,
     plot_sweep,
+    seeds_markdown,
 )
 from yafs_safetail.contention.world import ContentionConfig, ContentionError
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
@@ -52,7 +60,14 @@ from yafs_safetail.runs.campaign import (
     engine_free_command,
     run_campaign,
 )
+from yafs_safetail.runs.grid import RunSpec
 from yafs_safetail.runs.output import SWEEP_FILE
+
+#: With --seeds: every seed's sweep.csv rows, with a leading seed column.
+SEEDS_FILE = "seeds.csv"
+#: run.json's kind: one seed's sweep, and the folder of several.
+SWEEP_KIND = "load_sweep"
+SEEDS_KIND = "load_sweep_seeds"
 
 
 def load_list(text: str) -> tuple[float, ...]:
@@ -65,20 +80,52 @@ def load_list(text: str) -> tuple[float, ...]:
     return tuple(sorted(loads))
 
 
-def _is_sweep_folder(folder: Path) -> bool:
-    """A folder this command made: a campaign's state file, and a sweep's run.json or nothing
-    but the campaign's files and load folders (so another campaign's folder or a results folder
-    is never written into)."""
+def _is_sweep_folder(folder: Path, kind: str) -> bool:
+    """A folder this command made for ``kind`` (one seed or several): a campaign's state file,
+    and a sweep's run.json of that kind or nothing but the campaign's files and its load (or
+    seed) folders (so another campaign's folder or a results folder is never written into)."""
     if not (folder / STATE_FILE).is_file():
         return False
     if not (folder / "run.json").exists():
-        # Interrupted before the table was assembled: only the campaign's files and load folders.
-        return all(item.name.startswith(("load-", ".load-", "campaign.", ".campaign."))
-                   for item in folder.iterdir())
+        # Interrupted before the table was assembled: only the campaign's files and run folders.
+        runs = ("seed-", ".seed-") if kind == SEEDS_KIND else ("load-", ".load-")
+        return all(item.name.startswith((*runs, "campaign.", ".campaign.")) for item in folder.iterdir())
     try:
-        return json.loads((folder / "run.json").read_text()).get("kind") == "load_sweep"
+        return json.loads((folder / "run.json").read_text()).get("kind") == kind
     except (OSError, ValueError, AttributeError):
         return False
+
+
+def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, config: SweepConfig,
+                 command: str, specs: Sequence[RunSpec]) -> None:
+    """One seed's sweep.csv, SWEEP.md, figures and run.json into ``folder``."""
+    seed = config.base.seed
+    _write_csv(folder / SWEEP_FILE, frame)
+    table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
+    write_text_atomic(folder / "SWEEP.md",
+                      f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {seed})\n\n"
+                      + _safetail_line(args, config) + f"`{command}`\n\n" + markdown_table(table)
+                      + "\n\n## Goals\n\n" + checks_markdown(frame))
+    plot_sweep(frame, folder)
+    write_text_atomic(folder / "run.json", json.dumps({
+        "package_version": __version__, "command": command, "kind": SWEEP_KIND,
+        "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": seed,
+        "steps_scale": args.steps_scale, "preset": args.preset, "reward": config.safetail_reward, "target": args.target,
+        "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
+        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
+        "methods": list(config.methods), "safetail": config.safetail, "train_requests": config.train_requests,
+        "test_requests": config.test_requests, "topology": str(args.topology),
+        "placement": str(args.placement), "user_conditions": str(args.user_conditions),
+        "load_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}, indent=1) + "\n")
+
+
+def _write_csv(path: Path, frame: pd.DataFrame) -> None:
+    write_text_atomic(path, frame.to_csv(index=False, float_format="%.6g"))
+
+
+def _safetail_line(args: argparse.Namespace, config: SweepConfig) -> str:
+    return (f"SafeTail: preset `{args.preset}`, learner `{args.learner}`, reward `{config.safetail_reward}`, "
+            f"target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -88,7 +135,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
     parser.add_argument("--loads", type=load_list, default=(0.1, 0.3, 0.5, 0.7, 0.9),
                         help="offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    seeds = parser.add_mutually_exclusive_group()
+    seeds.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    seeds.add_argument("--seeds", type=distinct_int_list,
+                       help="several distinct seeds, comma-separated: a sweep per seed in OUT/seed-<S>/, "
+                            "compared in OUT/SEEDS.md")
     parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="scales SafeTail's training requests and the 20,000 test requests per load")
     parser.add_argument("--preset", choices=PRESET_NAMES, default="paper", help="SafeTail's preset (default paper)")
@@ -128,48 +179,55 @@ def main(argv: Sequence[str] | None = None) -> int:
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     for name in methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
-    config = SweepConfig(
-        base=ContentionConfig(use_case=args.uc, seed=args.seed, users=args.users,
+    seed_list = args.seeds if args.seeds is not None else (args.seed,)
+    several = args.seeds is not None
+    configs = {seed: SweepConfig(
+        base=ContentionConfig(use_case=args.uc, seed=seed, users=args.users,
                               queue=args.servers == "queue", cancel=not args.no_cancel,
                               background=args.background, topology=args.topology,
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
-        dispatch=args.safetail_dispatch)
+        dispatch=args.safetail_dispatch) for seed in seed_list}
+    config = configs[seed_list[0]]
     if config.test_requests < 100:
         raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
     command = engine_free_command("experiments/load_sweep.py", sys.argv[1:] if argv is None else argv)
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()) and not _is_sweep_folder(out):
-        raise ContentionError(f"--out {out}: exists and is not a load sweep's folder; give a new folder")
-    # Each load is one campaign run (cached by its configuration's hash, resumable, on any
-    # engine); the sweep's table is assembled from their folders.
-    specs = load_point_specs(config)
-    result = run_campaign(specs, out, engine=args.engine, workers=args.workers,
-                          ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    kind = SEEDS_KIND if several else SWEEP_KIND
+    if out.exists() and any(out.iterdir()) and not _is_sweep_folder(out, kind):
+        what = "a multi-seed load sweep" if several else "a load sweep"
+        raise ContentionError(f"--out {out}: exists and is not {what}'s folder; give a new folder")
+    # Each load of each seed is one campaign run (cached by its configuration's hash,
+    # resumable, on any engine); the tables are assembled from their folders.
+    folders = {seed: f"seed-{seed}/" if several else "" for seed in seed_list}
+    specs = {seed: [replace(spec, name=folders[seed] + spec.name) for spec in load_point_specs(configs[seed])]
+             for seed in seed_list}
+    result = run_campaign([spec for seed in seed_list for spec in specs[seed]], out, engine=args.engine,
+                          workers=args.workers, ray_address=args.ray_address, command=command,
+                          overwrite=args.overwrite)
     if result.failed:
         return 1
-    frame = pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in specs], ignore_index=True)
-    frame.to_csv(out / SWEEP_FILE, index=False, float_format="%.6g")
-    table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
-    write_text_atomic(out / "SWEEP.md",
-                      f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {args.seed})\n\n"
-                      f"SafeTail: preset `{args.preset}`, learner `{args.learner}`, reward `{config.safetail_reward}`, "
-                      f"target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n"
-                      f"`{command}`\n\n" + markdown_table(table) + "\n\n## Goals\n\n"
-                      + checks_markdown(frame))
-    plot_sweep(frame, out)
-    write_text_atomic(out / "run.json", json.dumps({
-        "package_version": __version__, "command": command, "kind": "load_sweep",
-        "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": args.seed,
-        "steps_scale": args.steps_scale, "preset": args.preset, "reward": config.safetail_reward, "target": args.target,
-        "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
-        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
-        "methods": list(methods), "safetail": not args.no_safetail, "train_requests": config.train_requests,
-        "test_requests": config.test_requests, "topology": str(args.topology),
-        "placement": str(args.placement), "user_conditions": str(args.user_conditions),
-        "load_runs": {spec.name: spec.run_id for spec in specs}}, indent=1) + "\n")
+    frames = {}
+    for seed in seed_list:
+        frames[seed] = pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in specs[seed]],
+                                 ignore_index=True)
+        _write_sweep(out / folders[seed], frames[seed], args, configs[seed], command, specs[seed])
+    if several:
+        rows = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
+        _write_csv(out / SEEDS_FILE, rows[["seed", *frames[seed_list[0]].columns]])
+        write_text_atomic(out / "SEEDS.md",
+                          f"# Load sweep over {len(seed_list)} seeds (use case {args.uc}, {args.users} users, "
+                          f"{args.servers}, seeds {', '.join(map(str, seed_list))})\n\n"
+                          + _safetail_line(args, config) + f"`{command}`\n\n" + seeds_markdown(frames))
+        write_text_atomic(out / "run.json", json.dumps({
+            "package_version": __version__, "command": command, "kind": SEEDS_KIND, "seeds": list(seed_list),
+            "seed_folders": {str(seed): f"seed-{seed}" for seed in seed_list}}, indent=1) + "\n")
+        print(seeds_markdown(frames))
+        print(f"written: {out / SEEDS_FILE}")
+        return 0
+    frame = frames[seed_list[0]]
     print(checks_markdown(frame))
     print(f"written: {out / SWEEP_FILE}")
     return 0

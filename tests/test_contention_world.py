@@ -421,3 +421,44 @@ def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch)
     run_policy(world, recorder)
     assert sorted(built) == ["test:0", "test:1", "test:2", "test:background"]
     assert recorder.targets == {r: pytest.approx(world.target_s(r)) for r in range(3000)}
+
+
+def test_load_sweep_over_seeds(tmp_path):
+    common = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.2,0.8", "--steps-scale", "0.02",
+              "--methods", "MinLoad-1,Tied"]
+    out = tmp_path / "seeds"
+    done = subprocess.run([*common, "--seeds", "3,5", "--workers", "2", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert json.loads((out / "run.json").read_text())["kind"] == "load_sweep_seeds"
+    # Each seed's folder is that seed's own sweep, byte for byte.
+    single = tmp_path / "single"
+    subprocess.run([*common, "--seed", "5", "--out", str(single)], check=True, capture_output=True, timeout=600)
+    for name in ("sweep.csv", "sweep_latency.png", "load-0.8/sweep.csv"):
+        assert (out / "seed-5" / name).read_bytes() == (single / name).read_bytes(), name
+    rows = pd.read_csv(out / "seeds.csv")
+    assert list(rows.columns[:3]) == ["seed", "load", "offered_load"] and sorted(set(rows["seed"])) == [3, 5]
+    per_seed = rows[rows["seed"] == 5].drop(columns="seed").reset_index(drop=True)
+    pd.testing.assert_frame_equal(per_seed, pd.read_csv(single / "sweep.csv"))
+    # SEEDS.md counts, per goal, the seeds whose own SWEEP.md says it holds.
+    report = (out / "SEEDS.md").read_text()
+    for load in ("0.2", "0.8"):
+        goal = f"SafeTail p99 <= 1.05x best fixed at load {load}"
+        holds = [seed for seed in (3, 5)
+                 if f"| {goal} | yes |" in (out / f"seed-{seed}" / "SWEEP.md").read_text()]
+        assert f"| {goal} | {len(holds)} of 2 | {', '.join(map(str, holds)) or 'none'} |" in report
+    frame = pd.read_csv(out / "seed-3" / "sweep.csv")
+    at = frame[frame["load"] == 0.8].set_index("method")
+    best = at.drop(index="SafeTail")["p99_s"]
+    assert (f"{at.loc['SafeTail', 'p99_s'] / best.min():.2f} ({best.idxmin()}), "
+            f"{at.loc['SafeTail', 'mean_n_selected']:.2f}") in report
+    # A one-seed sweep's folder is not a multi-seed one's, and the other way round.
+    for folder, option in ((single, ["--seeds", "3,5"]), (out, ["--seed", "3"])):
+        refused = subprocess.run([*common, *option, "--out", str(folder)], capture_output=True, text=True,
+                                 timeout=120)
+        assert refused.returncode == 2 and "load sweep's folder" in refused.stderr, refused.stderr
+    for bad, message in ((["--seeds", "3,3"], "3 is given twice"), (["--seeds", "3", "--seed", "4"], "not allowed")):
+        refused = subprocess.run([*common, *bad, "--out", str(tmp_path / "b")], capture_output=True, text=True,
+                                 timeout=120)
+        assert refused.returncode == 2 and message in refused.stderr and "Traceback" not in refused.stderr
+    assert not (tmp_path / "b").exists()

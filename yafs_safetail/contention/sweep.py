@@ -269,6 +269,39 @@ def sweep_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
     return checks
 
 
+def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
+    """Several seeds' sweeps (``{seed: sweep.csv's frame}``) side by side: per seed and load,
+    SafeTail's p99 over the best fixed method's and SafeTail's copies per request (when SafeTail
+    ran), then each goal of :func:`sweep_checks` with the seeds where it holds."""
+    seeds = sorted(frames)
+    lines: list[str] = []
+    if all(SAFETAIL in set(frame["method"]) for frame in frames.values()):
+        loads = sorted(frames[seeds[0]]["load"].unique())
+        lines += ["Each cell: SafeTail's p99 over the best fixed method's (that method), then SafeTail's "
+                  "copies per request.", "",
+                  "| seed | " + " | ".join(f"{load:g}" for load in loads) + " |",
+                  "|---|" + "---|" * len(loads)]
+        for seed in seeds:
+            frame = frames[seed]
+            cells = []
+            for load in loads:
+                method, best = best_fixed_p99(frame, load)
+                ours = frame[(frame["method"] == SAFETAIL) & (frame["load"] == load)].iloc[0]
+                cells.append(f"{ours['p99_s'] / best:.2f} ({method}), {ours['mean_n_selected']:.2f}")
+            lines.append(f"| {seed} | " + " | ".join(cells) + " |")
+        lines.append("")
+    holds: dict[str, list[int]] = {}
+    for seed in seeds:
+        for claim, ok, _ in sweep_checks(frames[seed]):
+            holds.setdefault(claim, [])
+            if ok:
+                holds[claim].append(seed)
+    lines += ["| goal | holds in | seeds where it holds |", "|---|---|---|"]
+    lines += [f"| {claim} | {len(ok)} of {len(seeds)} | {', '.join(map(str, ok)) or 'none'} |"
+              for claim, ok in holds.items()]
+    return "\n".join(lines) + "\n"
+
+
 def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
     """sweep_latency.png (p50 and p99 against load, per method) and sweep_copies.png."""
     import matplotlib
