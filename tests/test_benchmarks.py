@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPOSITORY = Path(__file__).resolve().parents[1]
@@ -75,3 +76,18 @@ def test_core_benchmark_against_a_yafs3_checkout_small_budget(tmp_path):
     columns = row.split()
     assert len(columns) == 11 and all(c.endswith("x") for c in (columns[3], columns[4], columns[7], columns[8]))
     assert float(columns[8][:-1]) > 0
+
+
+def test_sweep_noise_benchmark_small_budget():
+    done = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "bench_sweep_noise.py"), "--loads", "0.9",
+         "--seeds", "0,1", "--requests", "2000"],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.strip().splitlines()
+    assert [line.split()[:2] for line in lines[:-1]] == [["load=0.9", "seed=0"], ["load=0.9", "seed=1"]]
+    ratios = [float(line.rsplit("ratio=", 1)[1]) for line in lines[:-1]]
+    worst = float(lines[-1].removeprefix("max_abs_log_ratio="))
+    assert worst == pytest.approx(max(abs(np.log(r)) for r in ratios), abs=1e-3)
+    # Same tie-breaking rule up to the order of equals: the two can differ, but not by much.
+    assert all(0.8 < r < 1.25 for r in ratios)
