@@ -217,14 +217,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if several:
         rows = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
         _write_csv(out / SEEDS_FILE, rows[["seed", *frames[seed_list[0]].columns]])
+        comparison = seeds_markdown(frames)
         write_text_atomic(out / "SEEDS.md",
                           f"# Load sweep over {len(seed_list)} seeds (use case {args.uc}, {args.users} users, "
                           f"{args.servers}, seeds {', '.join(map(str, seed_list))})\n\n"
-                          + _safetail_line(args, config) + f"`{command}`\n\n" + seeds_markdown(frames))
+                          + _safetail_line(args, config) + f"`{command}`\n\n" + comparison)
         write_text_atomic(out / "run.json", json.dumps({
             "package_version": __version__, "command": command, "kind": SEEDS_KIND, "seeds": list(seed_list),
             "seed_folders": {str(seed): f"seed-{seed}" for seed in seed_list}}, indent=1) + "\n")
-        print(seeds_markdown(frames))
+        print(comparison)
         print(f"written: {out / SEEDS_FILE}")
         return 0
     frame = frames[seed_list[0]]
