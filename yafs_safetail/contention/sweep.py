@@ -281,14 +281,18 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
                   "copies per request.", "",
                   "| seed | " + " | ".join(f"{load:g}" for load in loads) + " |",
                   "|---|" + "---|" * len(loads)]
+        ratios: dict[float, list[float]] = {load: [] for load in loads}
         for seed in seeds:
             frame = frames[seed]
             cells = []
             for load in loads:
                 method, best = best_fixed_p99(frame, load)
                 ours = frame[(frame["method"] == SAFETAIL) & (frame["load"] == load)].iloc[0]
-                cells.append(f"{ours['p99_s'] / best:.2f} ({method}), {ours['mean_n_selected']:.2f}")
+                ratios[load].append(float(ours["p99_s"]) / best)
+                cells.append(f"{ratios[load][-1]:.2f} ({method}), {ours['mean_n_selected']:.2f}")
             lines.append(f"| {seed} | " + " | ".join(cells) + " |")
+        lines.append("| median (min–max) | " + " | ".join(
+            f"{np.median(r):.2f} ({min(r):.2f}–{max(r):.2f})" for r in ratios.values()) + " |")
         lines.append("")
     holds: dict[str, list[int]] = {}
     for seed in seeds:
