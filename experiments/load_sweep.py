@@ -181,15 +181,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         make_baseline(name, 5, np.random.default_rng(0))
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     several = args.seeds is not None
-    configs = {seed: SweepConfig(
-        base=ContentionConfig(use_case=args.uc, seed=seed, users=args.users,
+    config = SweepConfig(
+        base=ContentionConfig(use_case=args.uc, seed=seed_list[0], users=args.users,
                               queue=args.servers == "queue", cancel=not args.no_cancel,
                               background=args.background, topology=args.topology,
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
-        dispatch=args.safetail_dispatch) for seed in seed_list}
-    config = configs[seed_list[0]]
+        dispatch=args.safetail_dispatch)
+    # The seeds' sweeps differ in nothing else.
+    configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
     if config.test_requests < 100:
         raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
