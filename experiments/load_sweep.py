@@ -152,7 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "docs/deviations.md D12)")
     parser.add_argument("--learner", choices=OBJECTIVES, default="target-vector",
                         help="SafeTail's training objective: target-vector (§III, default) or value (the "
-                             "same network predicting each action's latency-cost reward; docs/deviations.md D13)")
+                             "same network predicting each action's latency, its copies priced at dispatch; "
+                             "docs/deviations.md D13)")
     parser.add_argument("--safetail-dispatch", choices=SAFETAIL_DISPATCH, default="all",
                         help="how SafeTail's subset is sent: all at once (default, the paper) or tied "
                              "(cancelled once one copy starts running, as Tied)")

@@ -340,15 +340,80 @@ def test_load_sweep_target_option(tmp_path):
 
 
 def test_the_latency_cost_reward():
-    from yafs_safetail.methods.safetail.reward import LOAD_PRICE, reward_latency_cost
+    from yafs_safetail.methods.safetail.reward import LOAD_PRICE, latency_score, reward_latency_cost
 
-    # Latency in units of τ plus a price per job already on the chosen servers, on a log scale.
-    assert reward_latency_cost(1.0, 2.0, 0) == pytest.approx(-np.log(0.5))  # idle servers: copies are free
-    assert reward_latency_cost(1.0, 2.0, 7) == pytest.approx(-np.log(0.5 + 7 * LOAD_PRICE))
+    # Latency in units of τ on a log scale, less a price per job already on the chosen servers.
+    assert latency_score(1.0, 2.0) == pytest.approx(-np.log(0.5))
+    assert reward_latency_cost(1.0, 2.0, 0) == latency_score(1.0, 2.0)  # idle servers: copies are free
+    assert reward_latency_cost(1.0, 2.0, 7) == pytest.approx(-np.log(0.5) - 7 * LOAD_PRICE)
     assert reward_latency_cost(0.1, 1.0, 1) > 0 > reward_latency_cost(4.0, 1.0, 1)
     assert np.isfinite(reward_latency_cost(0.0, 1.0, 0))
     with pytest.raises(ValueError, match="jobs_on_chosen"):
         reward_latency_cost(1.0, 1.0, -1)
+    with pytest.raises(ValueError, match="latency_s"):
+        latency_score(-1.0, 1.0)
+
+
+def test_the_value_learner_learns_the_latency_score_and_prices_copies_exactly():
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.methods.safetail.reward import LOAD_PRICE, latency_score
+    from yafs_safetail.methods.safetail.spaces import (
+        StateScales,
+        encode_state,
+        membership_matrix,
+        subset_of,
+    )
+
+    world = ContentionWorld(ContentionConfig(n_requests=400, users=20, load=0.8, seed=4, queue=True,
+                                             block_requests=400))
+    config = replace(get_preset("tuned", 1), objective="value", kappa=1000)  # no round: weights stay
+    scales = StateScales.for_use_case(1)
+
+    class Recording(SafeTailPolicy):
+        """Keeps what each decision saw and each record, in the order the learner got them."""
+
+        seen: dict
+        records: list
+
+        def choose(self, observation):
+            self.seen[observation.step] = observation
+            return super().choose(observation)
+
+        def feedback(self, outcome):
+            record = super().feedback(outcome)
+            self.records.append(record)
+            return record
+
+    for training in (True, False):
+        learner = SafeTailLearner(5, 36, config, 0)
+        policy = Recording(5, np.random.default_rng(0), learner=learner, scales=scales, training=training,
+                           reward_name="latency-cost", dispatch="tied")
+        policy.seen, policy.records = {}, []
+        run_policy(world, policy)
+        records = policy.records
+        assert len(records) == 400
+        busy = 0
+        for record in records:
+            jobs = policy.seen[record.step].server_active_users
+            chosen_jobs = int(sum(jobs[i] for i in record.servers))
+            busy += chosen_jobs > 0
+            # The record's reward is the whole latency-cost reward ...
+            assert record.reward == pytest.approx(latency_score(record.latency_s, record.target_s)
+                                                  - LOAD_PRICE * chosen_jobs)
+            if not training:
+                # ... and a greedy choice is the best prediction less the price of its copies.
+                state = encode_state(policy.seen[record.step], scales)
+                outputs = np.asarray(learner.model(state[None, :], training=False))[0]
+                scores = outputs - LOAD_PRICE * (membership_matrix(5) @ jobs)
+                assert record.servers == subset_of(int(scores.argmax()), 5)
+        assert busy > 20  # servers were busy at dispatch: the price was not always 0
+        if training:
+            # ... while the network is fitted to the latency score alone.
+            targets = learner.training_state()["targets"][:len(records)]
+            learned = np.nanmax(targets, axis=1)
+            assert np.allclose(learned, [latency_score(r.latency_s, r.target_s) for r in records], rtol=1e-6)
 
 
 def test_safetail_dispatch_and_value_reward_are_checked():

@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from yafs_safetail.methods.safetail import action_of, n_actions, reward, subset_of, target_vector
+from yafs_safetail.methods.safetail.spaces import membership_matrix
 
 n_servers_st = st.integers(min_value=1, max_value=10)
 
@@ -78,6 +79,16 @@ def test_subset_of_rejects(args: tuple[object, object], fragment: str) -> None:
 def test_action_of_rejects(subset: tuple[object, ...], fragment: str) -> None:
     with pytest.raises(ValueError, match=fragment):
         action_of(subset, 3)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("n", [1, 3, 5, 10])
+def test_membership_matrix_marks_each_actions_servers(n: int) -> None:
+    matrix = membership_matrix(n)
+    assert matrix.shape == (n_actions(n), n) and matrix.dtype == np.float32
+    for a in range(n_actions(n)):
+        assert tuple(np.flatnonzero(matrix[a]).tolist()) == subset_of(a, n)
+    with pytest.raises(ValueError):
+        matrix[0, 0] = 2.0
 
 
 def test_numpy_integers_accepted() -> None:

@@ -202,6 +202,24 @@ def test_training_every_kappa_and_epsilon_schedule() -> None:
     assert learner.last_round_loss is not None and np.isfinite(learner.last_round_loss)
 
 
+def test_act_subtracts_a_known_cost_per_action_before_the_argmax() -> None:
+    learner = SafeTailLearner(N, DIM, tiny_config(), seed=4)
+    x = states(1)[0]
+    outputs = np.asarray(learner.model(x[None, :], training=False))[0]
+    greedy = learner.act(x, explore=False)
+    assert greedy == int(outputs.argmax())
+    # A cost equal for every action changes nothing; a prohibitive cost on the argmax moves the
+    # choice to the next best output.
+    assert learner.act(x, explore=False, action_cost=np.full(31, 5.0)) == greedy
+    cost = np.zeros(31)
+    cost[greedy] = 1e9
+    runner_up = int(np.argsort(outputs)[-2])
+    assert learner.act(x, explore=False, action_cost=cost) == runner_up
+    # A cost that outweighs every difference between the outputs decides alone.
+    ranking = np.arange(31, dtype=float) * 1e3
+    assert learner.act(x, explore=False, action_cost=ranking) == 0
+
+
 def test_epsilon_greedy_explores_at_rate_epsilon() -> None:
     learner = SafeTailLearner(N, DIM, tiny_config(), seed=4)
     x = states(1)[0]

@@ -62,7 +62,8 @@ class SweepConfig:
         target: the τ SafeTail's reward compares with (``"eq4"``, Eq. 4, or ``"observed-load"``,
             its compute term at the servers' load seen at dispatch; ``contention.run.TARGETS``).
         learner: SafeTail's objective (``presets.OBJECTIVES``): ``"target-vector"``, §III's, or
-            ``"value"``, the same network predicting each action's latency-cost reward
+            ``"value"``, the same network predicting each action's latency score, less the
+            known price of its copies when choosing (the latency-cost reward)
             (docs/deviations.md D13; its reward is always ``"latency-cost"``, so ``reward``
             stays ``"paper"``).
         dispatch: how SafeTail's subset is sent: ``"all"`` (the paper) or ``"tied"``

@@ -1,6 +1,7 @@
 """The SafeTail learner: ε-greedy decisions (Eq. 3), the §III target vector a reward becomes, and
 training rounds on them; or, with the ``"value"`` objective (beyond the paper, D13), the same
-network trained to predict each action's reward."""
+network trained to predict each action's latency score (the copy price, known at dispatch, is
+subtracted when choosing)."""
 
 from __future__ import annotations
 
@@ -132,7 +133,7 @@ class SafeTailLearner:
 
     # -- decisions and learning --------------------------------------------------------------
 
-    def act(self, state: np.ndarray, explore: bool) -> int:
+    def act(self, state: np.ndarray, explore: bool, action_cost: np.ndarray | None = None) -> int:
         """Choose an action for one encoded state (Eq. 3).
 
         With ``explore`` in training mode: a uniformly random action with probability ε,
@@ -142,13 +143,18 @@ class SafeTailLearner:
         Args:
             state: float32 vector of length ``state_dim`` (from ``encode_state``).
             explore: Whether ε-greedy exploration applies (training phase).
+            action_cost: Subtracted from the network's outputs before the argmax, one entry
+                per action: a known part of the ``"value"`` objective's reward that the
+                network need not learn (the copy price, D13). None: the outputs alone.
 
         Returns:
             The action index, 0..2^n - 2.
         """
         if explore and self._training and self._explore_rng.random() < self.epsilon:
             return int(self._explore_rng.integers(self.n_actions))
-        return self._forward.best_action(state)
+        if action_cost is None:
+            return self._forward.best_action(state)
+        return int((self._forward.logits(state) - action_cost).argmax())
 
     def observe(self, state: np.ndarray, action: int, reward: float) -> bool:
         """Store one (ω, A, R) tuple; run a training round every κ stored tuples.

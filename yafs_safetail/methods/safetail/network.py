@@ -35,8 +35,8 @@ def build_network(
     ``state_dim`` inputs, one ReLU Dense layer per entry of ``config.hidden_widths``, a Dense
     layer over ``n_actions`` and Adam(``config.learning_rate``). With the ``"target-vector"``
     objective (§III) the last layer is a softmax fitted by categorical cross-entropy; with
-    ``"value"`` it is linear, each output an action's expected reward, fitted by
-    :func:`masked_squared_error` (only the action taken has a target).
+    ``"value"`` it is linear, each output the expected value of what an action is given to
+    learn, fitted by :func:`masked_squared_error` (only the action taken has a target).
     Each layer's Glorot-uniform initializer gets its own seed derived from ``init_seed``, so
     the initial weights do not depend on any global random state.
 

@@ -10,8 +10,19 @@ import numpy as np
 
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.policy import Policy, PolicyError
-from yafs_safetail.methods.safetail.reward import REWARD_NAMES, REWARDS, reward_latency_cost
-from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, subset_of
+from yafs_safetail.methods.safetail.reward import (
+    LOAD_PRICE,
+    REWARD_NAMES,
+    REWARDS,
+    latency_score,
+    reward_latency_cost,
+)
+from yafs_safetail.methods.safetail.spaces import (
+    StateScales,
+    encode_state,
+    membership_matrix,
+    subset_of,
+)
 from yafs_safetail.record import RequestRecord
 
 #: How SafeTail's chosen subset can be dispatched (``Policy.dispatch``).
@@ -24,7 +35,10 @@ class SafeTailPolicy(Policy):
     :meth:`choose` encodes ω^t, asks the learner for an action (Eq. 3: ε-greedy while
     ``training``, the argmax otherwise) and maps it to its subset; :meth:`feedback` puts the
     Eq. 5 reward of L_R against τ into the record and, while ``training``, hands the tuple
-    (ω^t, A^{t+1}, R^{t+1}) to the learner (a training round every κ tuples).
+    (ω^t, A^{t+1}, R^{t+1}) to the learner (a training round every κ tuples). With the
+    ``"latency-cost"`` reward the learner is given only the reward's latency score, and the
+    price of each action's copies (the jobs on its servers at dispatch) is subtracted from the
+    network's predictions when choosing.
 
     Args:
         n_servers: n; must match the learner's.
@@ -75,9 +89,16 @@ class SafeTailPolicy(Policy):
         started = time.perf_counter()
         state = encode_state(observation, self.scales)
         epsilon = self.learner.epsilon if self.training else 0.0
-        action = self.learner.act(state, explore=self.training)
+        if self._reward is None:
+            # The latency-cost reward: the network predicts each action's latency score, and the
+            # price of its copies, known now, is subtracted exactly rather than learned.
+            jobs_by_action = membership_matrix(self.n_servers) @ observation.server_active_users
+            action = self.learner.act(state, explore=self.training, action_cost=LOAD_PRICE * jobs_by_action)
+            jobs = int(jobs_by_action[action])
+        else:
+            action = self.learner.act(state, explore=self.training)
+            jobs = 0
         subset = subset_of(action, self.n_servers)
-        jobs = int(sum(observation.server_active_users[i] for i in subset)) if self._reward is None else 0
         self._decisions[observation.step] = (state, action, epsilon, jobs)
         self.decision_time_s += time.perf_counter() - started
         return subset
@@ -86,11 +107,13 @@ class SafeTailPolicy(Policy):
         state, action, epsilon, jobs = self._decisions.pop(outcome.step)
         if self._reward is None:
             value = reward_latency_cost(outcome.latency_s, outcome.target_s, jobs)
+            learned = latency_score(outcome.latency_s, outcome.target_s)
         else:
             value = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
                                  self.learner.config.delta)
+            learned = value
         if self.training:
             started = time.perf_counter()
-            self.learner.observe(state, action, value)
+            self.learner.observe(state, action, learned)
             self.training_time_s += time.perf_counter() - started
         return dataclasses.replace(outcome, reward=value, epsilon=epsilon)

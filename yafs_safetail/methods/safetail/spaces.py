@@ -79,6 +79,20 @@ def subset_matrix(n_servers: int) -> np.ndarray:
     return matrix
 
 
+@lru_cache(maxsize=MAX_SERVERS)
+def membership_matrix(n_servers: int) -> np.ndarray:
+    """float32 matrix ``M[a, i]`` = 1 when server ``i`` is in the subset of action ``a``, else 0.
+
+    Read-only; shape (2^n - 1, n). ``M @ per_server`` sums a per-server quantity over every
+    action's subset at once (the value learner's copy price).
+    """
+    n = _check_n_servers(n_servers)
+    masks = np.arange(1, 1 << n, dtype=np.int64)
+    matrix = ((masks[:, None] >> np.arange(n)[None, :]) & 1).astype(np.float32)
+    matrix.setflags(write=False)
+    return matrix
+
+
 def subset_of(action_index: int, n_servers: int) -> tuple[int, ...]:
     """Server indices (ascending) of the subset that action ``action_index`` selects.
 
