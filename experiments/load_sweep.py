@@ -142,6 +142,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "compared in OUT/SEEDS.md")
     parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="scales SafeTail's training requests and the 20,000 test requests per load")
+    parser.add_argument("--test-requests", type=positive_int, default=None,
+                        help="test requests per load (default 20,000 × --steps-scale): more decide each p99 "
+                             "more closely")
     parser.add_argument("--preset", choices=PRESET_NAMES, default="paper", help="SafeTail's preset (default paper)")
     parser.add_argument("--reward", choices=("paper", "no-free-miss"), default="paper",
                         help="SafeTail's reward: Eq. 5 (default) or Eq. 5 without case 3's free miss "
@@ -189,11 +192,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
-        dispatch=args.safetail_dispatch)
+        dispatch=args.safetail_dispatch, test_requests_per_load=args.test_requests)
     # The seeds' sweeps differ in nothing else.
     configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
     if config.test_requests < 100:
-        raise ContentionError(f"--steps-scale {args.steps_scale}: {config.test_requests} test requests per load; "
+        flag = "--test-requests" if args.test_requests is not None else f"--steps-scale {args.steps_scale}"
+        raise ContentionError(f"{flag}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
     command = engine_free_command("experiments/load_sweep.py", sys.argv[1:] if argv is None else argv)
     out = Path(args.out)

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from yafs_safetail.contention.run import PolicyDispatcher, run_policy, summarise
+from yafs_safetail.contention.sweep import SweepConfig
 from yafs_safetail.contention.world import (
     ContentionConfig,
     ContentionError,
@@ -337,6 +338,26 @@ def test_load_sweep_target_option(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--target" in bad.stderr and len(bad.stderr.splitlines()) == 1
     assert not (tmp_path / "b").exists()
+
+
+def test_load_sweep_test_requests_option(tmp_path):
+    from yafs_safetail.contention.run import WARMUP_FRACTION
+
+    out = tmp_path / "sweep"
+    done = subprocess.run([sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
+                           "--test-requests", "1000", "--no-safetail", "--methods", "Tied", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    # 1,000 test requests whatever --steps-scale (which alone would give 400), warm-up left out.
+    assert json.loads((out / "run.json").read_text())["test_requests"] == 1000
+    assert json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]["test_requests"] == 1000
+    assert pd.read_csv(out / "sweep.csv")["n_requests"].tolist() == [1000 - int(WARMUP_FRACTION * 1000)]
+    bad = subprocess.run([sys.executable, str(SWEEP), "--test-requests", "50", "--out", str(tmp_path / "b")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "--test-requests: 50 test requests per load" in bad.stderr
+    assert len(bad.stderr.splitlines()) == 1 and not (tmp_path / "b").exists()
+    with pytest.raises(ContentionError, match="test requests per load must be an integer >= 1"):
+        SweepConfig(base=ContentionConfig(), loads=(0.5,), test_requests_per_load=0)
 
 
 def test_the_latency_cost_reward():

@@ -58,6 +58,8 @@ class SweepConfig:
         safetail: also train and test SafeTail at each load.
         preset: SafeTail's learner preset.
         steps_scale: scales SafeTail's training budget (the preset's) and the test requests.
+        test_requests_per_load: test requests per load, whatever ``steps_scale`` (None:
+            :data:`TEST_REQUESTS` × ``steps_scale``); more requests decide a p99 more closely.
         reward: SafeTail's reward (``"paper"``, Eq. 5, or ``"no-free-miss"``).
         target: the τ SafeTail's reward compares with (``"eq4"``, Eq. 4, or ``"observed-load"``,
             its compute term at the servers' load seen at dispatch; ``contention.run.TARGETS``).
@@ -80,8 +82,12 @@ class SweepConfig:
     target: str = "eq4"
     learner: str = "target-vector"
     dispatch: str = "all"
+    test_requests_per_load: int | None = None
 
     def __post_init__(self) -> None:
+        n_test = self.test_requests_per_load
+        if n_test is not None and (isinstance(n_test, bool) or not isinstance(n_test, int) or n_test < 1):
+            raise ContentionError(f"test requests per load must be an integer >= 1, got {n_test!r}")
         if self.learner not in OBJECTIVES:
             raise ContentionError(f"learner {self.learner!r}: expected one of {', '.join(OBJECTIVES)}")
         if self.dispatch not in SAFETAIL_DISPATCH:
@@ -97,6 +103,8 @@ class SweepConfig:
 
     @property
     def test_requests(self) -> int:
+        if self.test_requests_per_load is not None:
+            return self.test_requests_per_load
         return scaled_steps(TEST_REQUESTS, self.steps_scale)
 
     @property
@@ -169,6 +177,7 @@ def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
         "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
         "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
         "target": config.target, "learner": config.learner, "dispatch": config.dispatch,
+        "test_requests": config.test_requests,
     }
 
 
@@ -204,7 +213,9 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
                        safetail=settings["safetail"], preset=settings["preset"],
                        steps_scale=settings["steps_scale"], reward=settings["reward"],
                        target=settings["target"], learner=settings["learner"],
-                       dispatch=settings["dispatch"])
+                       dispatch=settings["dispatch"],
+                       # Absent from the folders of earlier versions, where it followed steps_scale.
+                       test_requests_per_load=settings.get("test_requests"))
 
 
 def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
