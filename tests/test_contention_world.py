@@ -340,6 +340,25 @@ def test_load_sweep_target_option(tmp_path):
     assert not (tmp_path / "b").exists()
 
 
+def test_sweep_checks_are_computed_from_the_rows():
+    from yafs_safetail.contention.sweep import sweep_checks
+
+    def row(load, method, p99_s, copies):
+        return {"load": load, "method": method, "p99_s": p99_s, "mean_n_selected": copies}
+
+    frame = pd.DataFrame([row(0.1, "SafeTail", 1.02, 3.0), row(0.1, "Tied", 1.1, 2.0), row(0.1, "Oracle", 1.0, 5.0),
+                          row(0.9, "SafeTail", 4.0, 3.5), row(0.9, "Tied", 3.7, 2.0), row(0.9, "Oracle", 90.0, 5.0)])
+    checks = {claim: (holds, measured) for claim, holds, measured in sweep_checks(frame)}
+    assert checks["Oracle p99 at load 0.9 >= 1.5x at load 0.1"] == (True, "90.00x")
+    assert checks["SafeTail: fewer copies as load rises"] == (False, "3.00 -> 3.50")
+    assert checks["SafeTail p99 <= 1.05x best fixed at load 0.1"] == (True, "1.020 s vs Oracle 1.000 s (1.02x)")
+    assert not checks["SafeTail p99 <= 1.05x best fixed at load 0.9"][0]  # 4.0 s against Tied's 3.7 s
+    assert checks["SafeTail p99 < Oracle's at load 0.9"][0]
+    # One load says nothing of how the copies or Oracle follow the load: those goals are left out.
+    single = {claim for claim, _, _ in sweep_checks(frame[frame["load"] == 0.9])}
+    assert single == {"SafeTail p99 <= 1.05x best fixed at load 0.9", "SafeTail p99 < Oracle's at load 0.9"}
+
+
 def test_load_sweep_test_requests_option(tmp_path):
     from yafs_safetail.contention.run import WARMUP_FRACTION
 
