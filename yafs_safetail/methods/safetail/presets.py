@@ -55,8 +55,8 @@ PAPER_BATCH_SIZE = 32
 REPLAY_SAMPLING = ("recent", "uniform")
 #: What the network is trained to output: ``"target-vector"``, §III's softmax over actions fitted to
 #: the target vector V^t by cross-entropy (the paper); ``"value"``, each action's expected value of
-#: what it is given to learn (the latency score), fitted by squared error on the action taken (beyond the paper: the contention world's learner,
-#: docs/deviations.md D13).
+#: what it is given to learn (the latency score), fitted by squared error on the action taken
+#: (beyond the paper: the contention world's learner, docs/deviations.md D13).
 OBJECTIVES = ("target-vector", "value")
 
 
