@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from yafs_safetail.cli import ArgumentParser, distinct_int_list, positive_int, run_cli
+from yafs_safetail.cli import ArgumentParser, distinct_int_list, load_list, positive_int, run_cli
 from yafs_safetail.contention.run import run_policy, summarise
 from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
 from yafs_safetail.edge.observation import Observation
@@ -37,16 +37,6 @@ class TiedCoinToss(Tied):
         # Random keys below 1 only reorder servers with the same number of jobs.
         order = np.argsort(jobs + self.rng.random(jobs.shape[0]), kind="stable")
         return tuple(order[:2].tolist())
-
-
-def load_list(text: str) -> tuple[float, ...]:
-    try:
-        loads = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        raise ValueError(f"--loads: expected comma-separated numbers, got {text!r}") from None
-    if not loads or any(not 0 < load < 10 for load in loads):
-        raise ValueError(f"--loads: expected loads in (0, 10), got {text!r}")
-    return loads
 
 
 def main(argv: list[str] | None = None) -> int:

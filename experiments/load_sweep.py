@@ -33,6 +33,7 @@ from yafs_safetail.cli import (
     add_verbosity_options,
     configure_verbosity,
     distinct_int_list,
+    load_list,
     non_negative_int,
     positive_float,
     positive_int,
@@ -68,16 +69,6 @@ SEEDS_FILE = "seeds.csv"
 #: run.json's kind: one seed's sweep, and the folder of several.
 SWEEP_KIND = "load_sweep"
 SEEDS_KIND = "load_sweep_seeds"
-
-
-def load_list(text: str) -> tuple[float, ...]:
-    try:
-        loads = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
-    if not loads or any(not 0 < load < 10 for load in loads) or len(set(loads)) != len(loads):
-        raise argparse.ArgumentTypeError(f"expected distinct loads in (0, 10), got {text!r}")
-    return tuple(sorted(loads))
 
 
 def _is_sweep_folder(folder: Path, kind: str) -> bool:

@@ -98,6 +98,17 @@ def int_list(text: str) -> tuple[int, ...]:
     return values
 
 
+def load_list(text: str) -> tuple[float, ...]:
+    """An argparse type: distinct offered loads in (0, 10), comma-separated, returned ascending."""
+    try:
+        loads = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if not loads or any(not 0 < load < 10 for load in loads) or len(set(loads)) != len(loads):
+        raise argparse.ArgumentTypeError(f"expected distinct loads in (0, 10), got {text!r}")
+    return tuple(sorted(loads))
+
+
 def distinct_int_list(text: str) -> tuple[int, ...]:
     """:func:`int_list` with no value given twice (a repeated seed would count twice)."""
     values = int_list(text)

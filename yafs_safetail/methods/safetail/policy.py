@@ -11,11 +11,10 @@ import numpy as np
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.policy import Policy, PolicyError
 from yafs_safetail.methods.safetail.reward import (
-    LOAD_PRICE,
     REWARD_NAMES,
     REWARDS,
+    copy_price,
     latency_score,
-    reward_latency_cost,
 )
 from yafs_safetail.methods.safetail.spaces import (
     StateScales,
@@ -81,8 +80,8 @@ class SafeTailPolicy(Policy):
         self.dispatch = dispatch
         self.decision_time_s = 0.0
         self.training_time_s = 0.0
-        # Per request in flight: the state, the action, ε, and Σ ℓ_i over the chosen servers.
-        self._decisions: dict[int, tuple[np.ndarray, int, float, int]] = {}
+        # Per request in flight: the state, the action, ε, and the price of its copies.
+        self._decisions: dict[int, tuple[np.ndarray, int, float, float]] = {}
 
     def choose(self, observation: Observation | None) -> tuple[int, ...]:
         assert observation is not None
@@ -92,22 +91,23 @@ class SafeTailPolicy(Policy):
         if self._reward is None:
             # The latency-cost reward: the network predicts each action's latency score, and the
             # price of its copies, known now, is subtracted exactly rather than learned.
-            jobs_by_action = membership_matrix(self.n_servers) @ observation.server_active_users
-            action = self.learner.act(state, explore=self.training, action_cost=LOAD_PRICE * jobs_by_action)
-            jobs = int(jobs_by_action[action])
+            prices = copy_price(membership_matrix(self.n_servers) @ observation.server_active_users)
+            action = self.learner.act(state, explore=self.training, action_cost=prices)
+            price = float(prices[action])
         else:
             action = self.learner.act(state, explore=self.training)
-            jobs = 0
+            price = 0.0
         subset = subset_of(action, self.n_servers)
-        self._decisions[observation.step] = (state, action, epsilon, jobs)
+        self._decisions[observation.step] = (state, action, epsilon, price)
         self.decision_time_s += time.perf_counter() - started
         return subset
 
     def feedback(self, outcome: RequestRecord) -> RequestRecord:
-        state, action, epsilon, jobs = self._decisions.pop(outcome.step)
+        state, action, epsilon, price = self._decisions.pop(outcome.step)
         if self._reward is None:
-            value = reward_latency_cost(outcome.latency_s, outcome.target_s, jobs)
+            # reward_latency_cost, from the score the network learns and the price of the copies.
             learned = latency_score(outcome.latency_s, outcome.target_s)
+            value = learned - price
         else:
             value = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
                                  self.learner.config.delta)

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+from typing import TypeVar
+
+import numpy as np
 
 
 def _check_latency_and_target(latency_s: float, target_s: float) -> None:
@@ -98,7 +101,10 @@ def latency_score(latency_s: float, target_s: float) -> float:
     return -math.log(max(latency_s / target_s, 1e-6))
 
 
-def copy_price(jobs_on_chosen: int | float) -> float:
+_Jobs = TypeVar("_Jobs", float, np.ndarray)
+
+
+def copy_price(jobs_on_chosen: _Jobs) -> _Jobs:
     """LOAD_PRICE · Σ ℓ_i: what a request's copies cost the others, known at dispatch.
 
     A copy joining a server that runs ℓ_i jobs slows each of them (processor sharing) or waits
@@ -106,10 +112,9 @@ def copy_price(jobs_on_chosen: int | float) -> float:
     are not, whatever the load the run was set to.
 
     Args:
-        jobs_on_chosen: Σ ℓ_i over the servers the action chose, as observed at dispatch.
+        jobs_on_chosen: Σ ℓ_i over the servers an action chose, as observed at dispatch (>= 0),
+            or an array of them, one per action (the policy prices every action at once).
     """
-    if jobs_on_chosen < 0:
-        raise ValueError(f"jobs_on_chosen must be >= 0, got {jobs_on_chosen!r}")
     return LOAD_PRICE * jobs_on_chosen
 
 
@@ -127,6 +132,8 @@ def reward_latency_cost(latency_s: float, target_s: float, jobs_on_chosen: int) 
         target_s: τ, seconds, finite and > 0.
         jobs_on_chosen: Σ ℓ_i over the servers the action chose, as observed at dispatch.
     """
+    if jobs_on_chosen < 0:
+        raise ValueError(f"jobs_on_chosen must be >= 0, got {jobs_on_chosen!r}")
     return latency_score(latency_s, target_s) - copy_price(jobs_on_chosen)
 
 
