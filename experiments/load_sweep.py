@@ -42,6 +42,7 @@ from yafs_safetail.cli import (
 from yafs_safetail.contention.run import TARGETS
 from yafs_safetail.contention.sweep import (
     DEFAULT_SWEEP_METHODS,
+    DEFAULT_VALUE_NETWORKS,
     SweepConfig,
     checks_markdown,
     load_point_specs,
@@ -105,7 +106,8 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
         "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
         "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
         "methods": list(config.methods), "safetail": config.safetail, "train_requests": config.train_requests,
-        "test_requests": config.test_requests, "topology": str(args.topology),
+        "test_requests": config.test_requests, "value_networks": config.value_networks,
+        "topology": str(args.topology),
         "placement": str(args.placement), "user_conditions": str(args.user_conditions),
         "load_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}, indent=1) + "\n")
 
@@ -115,8 +117,9 @@ def _write_csv(path: Path, frame: pd.DataFrame) -> None:
 
 
 def _safetail_line(args: argparse.Namespace, config: SweepConfig) -> str:
-    return (f"SafeTail: preset `{args.preset}`, learner `{args.learner}`, reward `{config.safetail_reward}`, "
-            f"target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n")
+    networks = f" ({config.value_networks} networks averaged)" if config.value_networks > 1 else ""
+    return (f"SafeTail: preset `{args.preset}`, learner `{args.learner}`{networks}, "
+            f"reward `{config.safetail_reward}`, target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -148,6 +151,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="SafeTail's training objective: target-vector (§III, default) or value (the "
                              "same network predicting each action's latency, its copies priced at dispatch; "
                              "docs/deviations.md D13)")
+    parser.add_argument("--value-networks", type=positive_int, default=None,
+                        help="with --learner value: how many networks' predictions SafeTail averages "
+                             f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)")
     parser.add_argument("--safetail-dispatch", choices=SAFETAIL_DISPATCH, default="all",
                         help="how SafeTail's subset is sent: all at once (default, the paper) or tied "
                              "(cancelled once one copy starts running, as Tied)")
@@ -174,6 +180,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     for name in methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
+    if args.value_networks is not None and args.learner != "value":
+        raise ContentionError(f"--value-networks {args.value_networks}: only with --learner value")
+    value_networks = DEFAULT_VALUE_NETWORKS if args.learner == "value" else 1
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     several = args.seeds is not None
     config = SweepConfig(
@@ -183,7 +192,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
-        dispatch=args.safetail_dispatch, test_requests_per_load=args.test_requests)
+        dispatch=args.safetail_dispatch, test_requests_per_load=args.test_requests,
+        value_networks=value_networks if args.value_networks is None else args.value_networks)
     # The seeds' sweeps differ in nothing else.
     configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
     if config.test_requests < 100:

@@ -486,16 +486,18 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
     out = tmp_path / "sweep"
     command = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
                "--methods", "Tied", "--preset", "tuned", "--learner", "value", "--safetail-dispatch", "tied",
-               "--seed", "2", "--out", str(out)]
+               "--value-networks", "2", "--seed", "2", "--out", str(out)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
     assert (run["learner"], run["safetail_dispatch"], run["reward"]) == ("value", "tied", "latency-cost")
+    assert run["value_networks"] == 2
     settings = json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]
-    assert (settings["learner"], settings["dispatch"]) == ("value", "tied")
+    assert (settings["learner"], settings["dispatch"], settings["value_networks"]) == ("value", "tied", 2)
     frame = pd.read_csv(out / "sweep.csv")
     assert list(frame["method"]) == ["SafeTail", "Tied"]
-    assert ("SafeTail: preset `tuned`, learner `value`, reward `latency-cost`, target `eq4`, dispatch `tied`."
+    assert ("SafeTail: preset `tuned`, learner `value` (2 networks averaged), reward `latency-cost`, target `eq4`, "
+            "dispatch `tied`."
             in (out / "SWEEP.md").read_text())
     # Same seed, same bytes.
     again = tmp_path / "again"
@@ -505,6 +507,12 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "the value learner has its own reward" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
+    bad = subprocess.run([sys.executable, str(SWEEP), "--value-networks", "2", "--out", str(tmp_path / "b")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "--value-networks 2: only with --learner value" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
+    with pytest.raises(ContentionError, match="only the value learner averages networks"):
+        SweepConfig(base=ContentionConfig(), loads=(0.5,), value_networks=2)
 
 
 def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch):

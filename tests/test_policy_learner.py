@@ -407,3 +407,59 @@ def test_value_learner_saves_and_reloads(tmp_path: Path) -> None:
     for i in range(16):  # it keeps training with the masked loss
         loaded.observe(x[i], 2, 0.3)
     assert loaded.n_training_rounds == 3 and np.isfinite(loaded.last_round_loss)
+
+
+# --- several value networks averaged (docs/deviations.md D13) ------------------------------
+
+
+def test_value_networks_are_independent_members_whose_mean_decides() -> None:
+    learner = SafeTailLearner(N, DIM, tiny_config(objective="value", n_networks=3), seed=4)
+    assert learner.model.output_shape == (None, 3 * learner.n_actions)
+    firsts = [learner.model.get_layer(f"net{j}_hidden0").get_weights()[0] for j in range(3)]
+    assert not np.allclose(firsts[0], firsts[1]) and not np.allclose(firsts[1], firsts[2])
+    x = states(40, seed=5)
+    for i in range(32):
+        learner.observe(x[i], i % 7, 0.2 * (i % 3) - 0.3)
+    assert learner.n_training_rounds == 2
+    # Each member is trained on the same tuple: the action's column in every member's block.
+    stored = learner._targets[0].reshape(3, learner.n_actions)
+    assert (stored[:, 0] == -0.3).all() and np.isnan(stored[:, 1:]).all()
+    outputs = learner.predict_probabilities(x).reshape(len(x), 3, learner.n_actions)
+    np.testing.assert_allclose(learner._forward.logits(x), outputs.mean(axis=1), rtol=1e-4, atol=1e-6)
+    # The members disagree, so the decision is the mean's argmax, not any one member's.
+    assert not np.allclose(outputs[:, 0], outputs[:, 1], atol=1e-3)
+    cost = np.linspace(0.0, 0.1, learner.n_actions)
+    chosen = [learner.act(row, explore=False, action_cost=cost) for row in x]
+    np.testing.assert_array_equal(chosen, (outputs.mean(axis=1) - cost).argmax(axis=1))
+
+
+def test_one_value_network_is_the_single_network() -> None:
+    one = SafeTailLearner(N, DIM, tiny_config(objective="value", n_networks=1), seed=4)
+    plain = SafeTailLearner(N, DIM, tiny_config(objective="value"), seed=4)
+    assert [layer.name for layer in one.model.layers] == [layer.name for layer in plain.model.layers]
+    for a, b in zip(one.model.get_weights(), plain.model.get_weights(), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_several_networks_only_with_the_value_objective() -> None:
+    with pytest.raises(ValueError, match="n_networks \\(2\\) must be 1 with the 'target-vector' objective"):
+        tiny_config(n_networks=2)
+    with pytest.raises(ValueError, match="n_networks must be an integer >= 1"):
+        tiny_config(objective="value", n_networks=0)
+
+
+def test_value_networks_save_reload_and_resume_from_a_checkpoint(tmp_path: Path) -> None:
+    config = tiny_config(objective="value", n_networks=2)
+    learner = SafeTailLearner(N, DIM, config, seed=8)
+    x = states(64, seed=9)
+    for i in range(32):
+        learner.observe(x[i], i % 31, 0.1 * (i % 3) - 0.1)
+    loaded = SafeTailLearner.load(learner.save(tmp_path / "pair.keras"))
+    assert loaded.config.n_networks == 2
+    np.testing.assert_array_equal(loaded._forward.logits(x), learner._forward.logits(x))
+    twin = SafeTailLearner(N, DIM, config, seed=8)
+    twin.restore_training_state(learner.training_state())
+    for i in range(32, 64):
+        learner.observe(x[i], 3, 0.2)
+        twin.observe(x[i], 3, 0.2)
+    np.testing.assert_array_equal(twin._forward.logits(x), learner._forward.logits(x))

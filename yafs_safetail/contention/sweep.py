@@ -39,6 +39,8 @@ log = logging.getLogger(__name__)
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
     "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
 )
+#: How many networks the value learner averages unless told (``SweepConfig.value_networks``).
+DEFAULT_VALUE_NETWORKS = 1
 #: Test requests per load at steps scale 1.
 TEST_REQUESTS = 20_000
 #: sweep.csv's columns, in order.
@@ -70,6 +72,8 @@ class SweepConfig:
             stays ``"paper"``).
         dispatch: how SafeTail's subset is sent: ``"all"`` (the paper) or ``"tied"``
             (``SafeTailPolicy.dispatch``).
+        value_networks: with the value learner, how many networks' predictions are averaged
+            (``LearnerConfig.n_networks``); 1 otherwise.
     """
 
     base: ContentionConfig
@@ -83,6 +87,7 @@ class SweepConfig:
     learner: str = "target-vector"
     dispatch: str = "all"
     test_requests_per_load: int | None = None
+    value_networks: int = 1
 
     def __post_init__(self) -> None:
         n_test = self.test_requests_per_load
@@ -92,6 +97,11 @@ class SweepConfig:
             raise ContentionError(f"learner {self.learner!r}: expected one of {', '.join(OBJECTIVES)}")
         if self.dispatch not in SAFETAIL_DISPATCH:
             raise ContentionError(f"dispatch {self.dispatch!r}: expected one of {', '.join(SAFETAIL_DISPATCH)}")
+        n_networks = self.value_networks
+        if isinstance(n_networks, bool) or not isinstance(n_networks, int) or n_networks < 1:
+            raise ContentionError(f"value networks must be an integer >= 1, got {n_networks!r}")
+        if n_networks > 1 and self.learner != "value":
+            raise ContentionError(f"{n_networks} value networks: only the value learner averages networks")
         if self.learner == "value" and self.reward != "paper":
             raise ContentionError(f"reward {self.reward!r}: the value learner has its own reward "
                                   "(latency-cost); leave the reward at paper")
@@ -114,13 +124,14 @@ class SweepConfig:
 
 def _safetail_policy(world: ContentionWorld, preset: str, seed: int, train_steps: int,
                      reward: str = "paper", objective: str = "target-vector",
-                     dispatch: str = "all") -> SafeTailPolicy:
+                     dispatch: str = "all", n_networks: int = 1) -> SafeTailPolicy:
     # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
 
     use_case = world.use_case
-    config = replace(get_preset(preset, use_case.number, train_steps=train_steps), objective=objective)
+    config = replace(get_preset(preset, use_case.number, train_steps=train_steps), objective=objective,
+                     n_networks=n_networks)
     learner = SafeTailLearner(
         world.n_servers,
         state_dim(world.n_servers, len(use_case.gamma_columns), len(world.scenario.user_location)),
@@ -144,7 +155,8 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
             train_world = ContentionWorld(replace(test_config, phase="train", n_requests=config.train_requests),
                                           inputs, scenario)
             safetail = _safetail_policy(train_world, config.preset, config.base.seed, config.train_requests,
-                                        config.safetail_reward, config.learner, config.dispatch)
+                                        config.safetail_reward, config.learner, config.dispatch,
+                                        config.value_networks)
             trained = run_policy(train_world, safetail, target=config.target)
             log(f"load {load:g}: SafeTail trained on {config.train_requests} requests in {trained.wall_s:.1f} s")
             safetail.training = False
@@ -177,7 +189,7 @@ def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
         "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
         "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
         "target": config.target, "learner": config.learner, "dispatch": config.dispatch,
-        "test_requests": config.test_requests,
+        "test_requests": config.test_requests, "value_networks": config.value_networks,
     }
 
 
@@ -215,7 +227,8 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
                        target=settings["target"], learner=settings["learner"],
                        dispatch=settings["dispatch"],
                        # Absent from the folders of earlier versions, where it followed steps_scale.
-                       test_requests_per_load=settings.get("test_requests"))
+                       test_requests_per_load=settings.get("test_requests"),
+                       value_networks=settings.get("value_networks", 1))
 
 
 def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:

@@ -1,7 +1,7 @@
 """The SafeTail learner: ε-greedy decisions (Eq. 3), the §III target vector a reward becomes, and
 training rounds on them; or, with the ``"value"`` objective (beyond the paper, D13), the same
-network trained to predict each action's latency score (the copy price, known at dispatch, is
-subtracted when choosing)."""
+network (or the mean of ``n_networks`` of them) trained to predict each action's latency score
+(the copy price, known at dispatch, is subtracted when choosing)."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 
 from yafs_safetail.methods.safetail.network import (
-    NumpyForward,
     build_network,
     enable_determinism,
+    fast_forward,
     make_round_updates,
 )
 from yafs_safetail.methods.safetail.presets import LearnerConfig
@@ -87,10 +87,11 @@ class SafeTailLearner:
         self._model = build_network(
             state_dim, self.n_actions, config, int(init_seq.generate_state(1)[0])
         )
-        self._forward = NumpyForward.from_model(self._model)
+        self._forward = fast_forward(self._model, self.config)
         capacity = config.replay_capacity
         self._states = np.zeros((capacity, state_dim), dtype=np.float32)
-        self._targets = np.zeros((capacity, self.n_actions), dtype=np.float32)
+        # One target column per network output: n_networks copies of the action columns.
+        self._targets = np.zeros((capacity, config.n_networks * self.n_actions), dtype=np.float32)
         self._n_stored = 0
         self._n_buffered = 0
         self._n_rounds = 0
@@ -182,9 +183,9 @@ class SafeTailLearner:
         if self.config.objective == "value":
             if not 0 <= action < self.n_actions or not math.isfinite(reward):
                 raise ValueError(f"action {action!r} or reward {reward!r} out of range")
-            # Only the action taken has a target; the loss skips the NaN entries.
+            # Only the action taken has a target, in every network; the loss skips the NaN entries.
             self._targets[slot] = np.nan
-            self._targets[slot, action] = reward
+            self._targets[slot, action::self.n_actions] = reward
         else:
             self._targets[slot] = target_vector(action, reward, self.n_servers)
         self._states[slot] = state
@@ -217,7 +218,7 @@ class SafeTailLearner:
                     batch = order[start:start + c.batch_size]
                     losses.append(float(self._model.train_on_batch(states[batch], targets[batch])))
             self.last_round_loss = float(np.mean(losses))
-        self._forward = NumpyForward.from_model(self._model)
+        self._forward = fast_forward(self._model, self.config)
         self._n_rounds += 1
 
     def predict_probabilities(self, states: np.ndarray) -> np.ndarray:
@@ -267,7 +268,7 @@ class SafeTailLearner:
         self.last_round_loss = state["last_round_loss"]
         self._explore_rng.bit_generator.state = state["explore_rng"]
         self._shuffle_rng.bit_generator.state = state["shuffle_rng"]
-        self._forward = NumpyForward.from_model(self._model)
+        self._forward = fast_forward(self._model, self.config)
 
     # -- persistence (methods.safetail.persistence) ----------------------------------------
 

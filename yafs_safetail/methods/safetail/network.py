@@ -40,35 +40,57 @@ def build_network(
     Each layer's Glorot-uniform initializer gets its own seed derived from ``init_seed``, so
     the initial weights do not depend on any global random state.
 
+    With ``config.n_networks`` = K > 1 (value objective only) the model holds K such networks
+    side by side on the same input (layers ``net<j>_hidden<k>``, ``net<j>_actions``), each
+    with its own initial weights, and outputs their K·``n_actions`` predictions concatenated
+    (``actions``): one optimizer and one training call fit them all, each on its own error
+    (:func:`masked_squared_error` sums over the entries). :func:`fast_forward` averages them.
+
     Returns:
         The compiled ``keras.Model``.
     """
     import keras
 
-    layer_seeds = np.random.SeedSequence(init_seed).generate_state(len(config.hidden_widths) + 1)
-    # Every object is named explicitly: Keras's automatic names get a per-process counter
-    # ("adam_1", "input_layer_2"), which would make saved policies differ between two runs
-    # in one process.
-    layers: list[object] = [keras.Input(shape=(state_dim,), dtype="float32", name="state")]
-    for k, width in enumerate(config.hidden_widths):
-        layers.append(
+    n_networks = config.n_networks
+    n_layers = len(config.hidden_widths) + 1
+    layer_seeds = np.random.SeedSequence(init_seed).generate_state(n_networks * n_layers)
+    value = config.objective == "value"
+
+    def dense_stack(prefix: str, seeds: np.ndarray) -> list[Any]:
+        stack = [
             keras.layers.Dense(
                 width,
                 activation="relu",
-                kernel_initializer=keras.initializers.GlorotUniform(seed=int(layer_seeds[k])),
-                name=f"hidden{k}",
+                kernel_initializer=keras.initializers.GlorotUniform(seed=int(seeds[k])),
+                name=f"{prefix}hidden{k}",
+            )
+            for k, width in enumerate(config.hidden_widths)
+        ]
+        stack.append(
+            keras.layers.Dense(
+                n_actions,
+                activation="linear" if value else "softmax",
+                kernel_initializer=keras.initializers.GlorotUniform(seed=int(seeds[-1])),
+                name=f"{prefix}actions",
             )
         )
-    value = config.objective == "value"
-    layers.append(
-        keras.layers.Dense(
-            n_actions,
-            activation="linear" if value else "softmax",
-            kernel_initializer=keras.initializers.GlorotUniform(seed=int(layer_seeds[-1])),
-            name="actions",
-        )
-    )
-    model = keras.Sequential(layers, name="safetail_fnn")
+        return stack
+
+    # Every object is named explicitly: Keras's automatic names get a per-process counter
+    # ("adam_1", "input_layer_2"), which would make saved policies differ between two runs
+    # in one process.
+    state = keras.Input(shape=(state_dim,), dtype="float32", name="state")
+    if n_networks == 1:
+        model = keras.Sequential([state, *dense_stack("", layer_seeds)], name="safetail_fnn")
+    else:
+        outputs = []
+        for j in range(n_networks):
+            h = state
+            for layer in dense_stack(f"net{j}_", layer_seeds[j * n_layers:(j + 1) * n_layers]):
+                h = layer(h)
+            outputs.append(h)
+        joined = keras.layers.Concatenate(axis=-1, name="actions")(outputs)
+        model = keras.Model(inputs=state, outputs=joined, name="safetail_fnn_ensemble")
     # No XLA: avoids a compile step per input shape (partial last batches) and keeps training
     # on the plain, op-deterministic kernels.
     model.compile(
@@ -196,3 +218,39 @@ class NumpyForward:
     def best_action(self, state: np.ndarray) -> int:
         """argmax over actions for one float32 state of shape (d,)."""
         return int(self.logits(state).argmax())
+
+
+class EnsembleForward:
+    """The mean of several :class:`NumpyForward` networks' outputs (``n_networks`` > 1)."""
+
+    __slots__ = ("_members",)
+
+    def __init__(self, members: Sequence[NumpyForward]) -> None:
+        if not members:
+            raise ValueError("an ensemble needs at least one network")
+        self._members = tuple(members)
+
+    def logits(self, states: np.ndarray) -> np.ndarray:
+        """The members' mean output for a state (shape (d,)) or a batch (shape (m, d))."""
+        total = self._members[0].logits(states)
+        for member in self._members[1:]:
+            total += member.logits(states)
+        total /= len(self._members)
+        return total
+
+    def best_action(self, state: np.ndarray) -> int:
+        """argmax of the mean output for one float32 state of shape (d,)."""
+        return int(self.logits(state).argmax())
+
+
+def fast_forward(model: Any, config: LearnerConfig) -> NumpyForward | EnsembleForward:
+    """The NumPy forward pass of a network from :func:`build_network` with ``config``: the
+    network itself, or the mean of its ``config.n_networks`` members."""
+    if config.n_networks == 1:
+        return NumpyForward.from_model(model)
+    n_hidden = len(config.hidden_widths)
+    members = []
+    for j in range(config.n_networks):
+        names = [f"net{j}_hidden{k}" for k in range(n_hidden)] + [f"net{j}_actions"]
+        members.append(NumpyForward([w for name in names for w in model.get_layer(name).get_weights()]))
+    return EnsembleForward(members)

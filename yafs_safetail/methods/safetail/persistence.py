@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from yafs_safetail.methods.safetail.learner import SafeTailLearner
-from yafs_safetail.methods.safetail.network import NumpyForward, masked_squared_error
+from yafs_safetail.methods.safetail.network import fast_forward, masked_squared_error
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 SIDECAR_SUFFIX = ".json"
@@ -172,7 +172,7 @@ def load_learner(path: str | Path, *, training: bool = False) -> SafeTailLearner
     except (ValueError, OSError) as exc:
         raise PolicyFileError(f"{path}: cannot load the network: {exc}") from exc
     expected_in = (None, learner.state_dim)
-    expected_out = (None, learner.n_actions)
+    expected_out = (None, config.n_networks * learner.n_actions)
     if tuple(model.input_shape) != expected_in or tuple(model.output_shape) != expected_out:
         raise PolicyFileError(
             f"{path}: network maps {model.input_shape} -> {model.output_shape}, sidecar "
@@ -180,7 +180,7 @@ def load_learner(path: str | Path, *, training: bool = False) -> SafeTailLearner
         )
     learner._model = model
     learner._round_updates = None
-    learner._forward = NumpyForward.from_model(model)
+    learner._forward = fast_forward(model, config)
     learner._n_rounds = n_rounds
     learner._n_stored = n_stored
     if not math.isclose(learner.epsilon, saved_epsilon, abs_tol=1e-12):

@@ -90,6 +90,10 @@ class LearnerConfig:
             each on ``batch_size`` tuples drawn at random (without replacement) from the memory.
         updates_per_round: Adam updates per round for ``replay_sampling="uniform"``.
         objective: one of :data:`OBJECTIVES`; every preset uses ``"target-vector"``.
+        n_networks: With the ``"value"`` objective, how many networks (same layers, their own
+            initial weights, trained on the same minibatches) predict each action's value;
+            decisions use the mean of their predictions, which varies less from seed to seed
+            than one network's (D13). The §III objective has one network.
     """
 
     name: str
@@ -113,6 +117,7 @@ class LearnerConfig:
     replay_sampling: str = "recent"
     updates_per_round: int = 1
     objective: str = "target-vector"
+    n_networks: int = 1
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "hidden_widths", tuple(int(w) for w in self.hidden_widths))
@@ -132,7 +137,7 @@ class LearnerConfig:
             )
         positive_ints = ("kappa", "episode_steps", "n_episodes", "beta", "train_steps",
                          "test_steps", "replay_capacity", "epochs_per_round", "batch_size",
-                         "updates_per_round")
+                         "updates_per_round", "n_networks")
         for field in positive_ints:
             value = getattr(self, field)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -150,6 +155,11 @@ class LearnerConfig:
         if self.objective not in OBJECTIVES:
             raise ValueError(
                 f"LearnerConfig.objective must be one of {OBJECTIVES}, got {self.objective!r}"
+            )
+        if self.n_networks > 1 and self.objective != "value":
+            raise ValueError(
+                f"LearnerConfig.n_networks ({self.n_networks}) must be 1 with the {self.objective!r} "
+                "objective (only value networks are averaged)"
             )
         if self.replay_sampling == "uniform" and self.batch_size > self.kappa:
             raise ValueError(
