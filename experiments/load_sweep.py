@@ -106,7 +106,7 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
         "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
         "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
         "methods": list(config.methods), "safetail": config.safetail, "train_requests": config.train_requests,
-        "test_requests": config.test_requests, "value_networks": config.value_networks,
+        "test_requests": config.test_requests, "value_networks": config.n_value_networks,
         "topology": str(args.topology),
         "placement": str(args.placement), "user_conditions": str(args.user_conditions),
         "load_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}, indent=1) + "\n")
@@ -117,7 +117,7 @@ def _write_csv(path: Path, frame: pd.DataFrame) -> None:
 
 
 def _safetail_line(args: argparse.Namespace, config: SweepConfig) -> str:
-    networks = f" ({config.value_networks} networks averaged)" if config.value_networks > 1 else ""
+    networks = f" ({config.n_value_networks} networks averaged)" if config.n_value_networks > 1 else ""
     return (f"SafeTail: preset `{args.preset}`, learner `{args.learner}`{networks}, "
             f"reward `{config.safetail_reward}`, target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n")
 
@@ -182,7 +182,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         make_baseline(name, 5, np.random.default_rng(0))
     if args.value_networks is not None and args.learner != "value":
         raise ContentionError(f"--value-networks {args.value_networks}: only with --learner value")
-    value_networks = DEFAULT_VALUE_NETWORKS if args.learner == "value" else 1
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     several = args.seeds is not None
     config = SweepConfig(
@@ -193,7 +192,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
         dispatch=args.safetail_dispatch, test_requests_per_load=args.test_requests,
-        value_networks=value_networks if args.value_networks is None else args.value_networks)
+        value_networks=args.value_networks)
     # The seeds' sweeps differ in nothing else.
     configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
     if config.test_requests < 100:

@@ -513,6 +513,9 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
     with pytest.raises(ContentionError, match="only the value learner averages networks"):
         SweepConfig(base=ContentionConfig(), loads=(0.5,), value_networks=2)
+    # Unless told, the value learner averages DEFAULT_VALUE_NETWORKS networks; §III's has one.
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), learner="value").n_value_networks == 3
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,)).n_value_networks == 1
 
 
 def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch):
