@@ -222,7 +222,8 @@ class SafeTailLearner:
         self._n_rounds += 1
 
     def predict_probabilities(self, states: np.ndarray) -> np.ndarray:
-        """Softmax outputs of the Keras model for a batch of states (for analysis, not speed)."""
+        """The Keras model's outputs for a batch of states (for analysis, not speed): softmax
+        probabilities (§III), or predicted values, K·(2^n - 1) columns with K value networks."""
         return np.asarray(self._model(np.asarray(states, dtype=np.float32), training=False))
 
     # -- training checkpoints (runs.checkpoint) ----------------------------------------------

@@ -92,8 +92,8 @@ class LearnerConfig:
         objective: one of :data:`OBJECTIVES`; every preset uses ``"target-vector"``.
         n_networks: With the ``"value"`` objective, how many networks (same layers, their own
             initial weights, trained on the same minibatches) predict each action's value;
-            decisions use the mean of their predictions, which varies less from seed to seed
-            than one network's (D13). The §III objective has one network.
+            decisions use the mean of their predictions, meant to vary less from seed to seed
+            than one network's (D13 measures it). The §III objective has one network.
     """
 
     name: str
