@@ -394,9 +394,10 @@ def test_the_latency_cost_reward():
         latency_score(-1.0, 1.0)
 
 
-def test_the_value_learner_learns_the_latency_score_and_prices_copies_exactly():
+@pytest.mark.parametrize("dispatch", ["tied", "all"])
+def test_the_value_learner_learns_the_latency_score_and_prices_copies_exactly(dispatch):
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
-    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+    from yafs_safetail.methods.safetail.policy import TIED_MIN_COPIES, SafeTailPolicy
     from yafs_safetail.methods.safetail.presets import get_preset
     from yafs_safetail.methods.safetail.reward import LOAD_PRICE, latency_score
     from yafs_safetail.methods.safetail.spaces import (
@@ -429,7 +430,7 @@ def test_the_value_learner_learns_the_latency_score_and_prices_copies_exactly():
     for training in (True, False):
         learner = SafeTailLearner(5, 36, config, 0)
         policy = Recording(5, np.random.default_rng(0), learner=learner, scales=scales, training=training,
-                           reward_name="latency-cost", dispatch="tied")
+                           reward_name="latency-cost", dispatch=dispatch)
         policy.seen, policy.records = {}, []
         run_policy(world, policy)
         records = policy.records
@@ -447,8 +448,16 @@ def test_the_value_learner_learns_the_latency_score_and_prices_copies_exactly():
                 state = encode_state(policy.seen[record.step], scales)
                 outputs = np.asarray(learner.model(state[None, :], training=False))[0]
                 scores = outputs - LOAD_PRICE * (membership_matrix(5) @ jobs)
+                if dispatch == "tied":
+                    # A tied request has a sibling: lone copies are never the greedy choice.
+                    scores[membership_matrix(5).sum(axis=1) < TIED_MIN_COPIES] = -np.inf
                 assert record.servers == subset_of(int(scores.argmax()), 5)
         assert busy > 20  # servers were busy at dispatch: the price was not always 0
+        sizes = {len(record.servers) for record in records}
+        if training:
+            assert 1 in sizes  # exploration still tries lone copies (and the network learns from them)
+        elif dispatch == "tied":
+            assert min(sizes) == TIED_MIN_COPIES
         if training:
             # ... while the network is fitted to the latency score alone.
             targets = learner.training_state()["targets"][:len(records)]

@@ -26,6 +26,11 @@ from yafs_safetail.record import RequestRecord
 
 #: How SafeTail's chosen subset can be dispatched (``Policy.dispatch``).
 SAFETAIL_DISPATCH = ("all", "tied")
+#: The fewest copies the value learner's greedy choice sends as a tied request (when n >= 2).
+#: A lone copy has no sibling to take over when its queue is long, and under load the
+#: price of a second copy grows with the queues, so without this floor the learner sent lone
+#: copies exactly when queues were longest, and they made its p99 (docs/deviations.md D13).
+TIED_MIN_COPIES = 2
 
 
 class SafeTailPolicy(Policy):
@@ -52,6 +57,9 @@ class SafeTailPolicy(Policy):
         dispatch: how the contention world sends the chosen subset: ``"all"`` (every copy at
             once, the paper) or ``"tied"`` (the copies cancel each other once one starts
             running, as :class:`~yafs_safetail.methods.hedging.Tied`; contention world only).
+            With the ``"latency-cost"`` reward and ``"tied"``, the greedy choice is among subsets
+            of at least two servers (:data:`TIED_MIN_COPIES`); exploration still tries every
+            subset.
 
     Attributes:
         decision_time_s: wall time spent encoding states and choosing actions.
@@ -78,6 +86,11 @@ class SafeTailPolicy(Policy):
         if dispatch not in SAFETAIL_DISPATCH:
             raise PolicyError(f"SafeTail: unknown dispatch {dispatch!r}; valid: {', '.join(SAFETAIL_DISPATCH)}")
         self.dispatch = dispatch
+        # Added to each action's price when choosing greedily: +inf for a subset too small to
+        # be sent as a tied request (no floor for §III's learner, for "all", or with one server).
+        sizes = membership_matrix(n_servers).sum(axis=1)
+        floor = TIED_MIN_COPIES if (dispatch == "tied" and self._reward is None and n_servers >= TIED_MIN_COPIES) else 1
+        self._too_few_copies = np.where(sizes < floor, np.inf, 0.0)
         self.decision_time_s = 0.0
         self.training_time_s = 0.0
         # Per request in flight: the state, the action, ε, and the price of its copies.
@@ -92,7 +105,7 @@ class SafeTailPolicy(Policy):
             # The latency-cost reward: the network predicts each action's latency score, and the
             # price of its copies, known now, is subtracted exactly rather than learned.
             prices = copy_price(membership_matrix(self.n_servers) @ observation.server_active_users)
-            action = self.learner.act(state, explore=self.training, action_cost=prices)
+            action = self.learner.act(state, explore=self.training, action_cost=prices + self._too_few_copies)
             price = float(prices[action])
         else:
             action = self.learner.act(state, explore=self.training)
