@@ -156,7 +156,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                              f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)")
     parser.add_argument("--safetail-dispatch", choices=SAFETAIL_DISPATCH, default="all",
                         help="how SafeTail's subset is sent: all at once (default, the paper) or tied "
-                             "(cancelled once one copy starts running, as Tied)")
+                             "(cancelled once one copy starts running, as Tied; with --learner value, "
+                             "at least two copies)")
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
