@@ -457,12 +457,48 @@ def test_the_value_learner_learns_the_latency_score_and_prices_copies_exactly(di
         if training:
             assert 1 in sizes  # exploration still tries lone copies (and the network learns from them)
         elif dispatch == "tied":
-            assert min(sizes) == TIED_MIN_COPIES
+            assert min(sizes) >= TIED_MIN_COPIES
         if training:
             # ... while the network is fitted to the latency score alone.
             targets = learner.training_state()["targets"][:len(records)]
             learned = np.nanmax(targets, axis=1)
             assert np.allclose(learned, [latency_score(r.latency_s, r.target_s) for r in records], rtol=1e-6)
+
+
+@pytest.mark.parametrize("n_servers", [1, 2])
+def test_the_floor_of_two_tied_copies_needs_two_servers(n_servers):
+    # With two servers the only subset a tied request may take is both, whatever the network
+    # prefers; with one server there is no sibling to send, so the floor does not apply.
+    from yafs_safetail.edge.observation import Observation
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.methods.safetail.reward import copy_price
+    from yafs_safetail.methods.safetail.spaces import (
+        StateScales,
+        encode_state,
+        membership_matrix,
+        state_dim,
+        subset_of,
+    )
+
+    n = n_servers
+    observation = Observation(
+        server_uplink_bps=np.full(n, 20e6), server_downlink_bps=np.full(n, 20e6),
+        server_memory_util=np.full(n, 0.05), server_cpu_util=np.full(n, 0.5),
+        server_active_users=np.arange(n) * 30, server_median_propagation_s=np.full(n, 0.1),
+        input_bytes=80e3, est_output_bytes=2e3, gamma=np.array([]), user_location=np.array([0.0, 0.0]),
+        user_uplink_bps=20e6, user_downlink_bps=20e6, server_max_load=np.full(n, 4), step=0)
+    scales = StateScales.for_use_case(1)
+    learner = SafeTailLearner(n, state_dim(n, 0, 2), replace(get_preset("tuned", 1), objective="value"), 0)
+    outputs = np.asarray(learner.model(encode_state(observation, scales)[None, :], training=False))[0]
+    unfloored = subset_of(int((outputs - copy_price(membership_matrix(n) @ np.arange(n) * 30)).argmax()), n)
+    # Server 1's 30 jobs price it out: without the floor the choice is server 0 alone.
+    assert unfloored == (0,)
+    for dispatch, expected in (("tied", tuple(range(n))), ("all", unfloored)):
+        policy = SafeTailPolicy(n, np.random.default_rng(0), learner=learner, scales=scales, training=False,
+                                reward_name="latency-cost", dispatch=dispatch)
+        assert policy.choose(observation) == expected, dispatch
 
 
 def test_safetail_dispatch_and_value_reward_are_checked():
