@@ -492,7 +492,8 @@ def test_the_floor_of_two_tied_copies_needs_two_servers(n_servers):
     scales = StateScales.for_use_case(1)
     learner = SafeTailLearner(n, state_dim(n, 0, 2), replace(get_preset("tuned", 1), objective="value"), 0)
     outputs = np.asarray(learner.model(encode_state(observation, scales)[None, :], training=False))[0]
-    unfloored = subset_of(int((outputs - copy_price(membership_matrix(n) @ np.arange(n) * 30)).argmax()), n)
+    prices = copy_price(membership_matrix(n) @ observation.server_active_users)
+    unfloored = subset_of(int((outputs - prices).argmax()), n)
     # Server 1's 30 jobs price it out: without the floor the choice is server 0 alone.
     assert unfloored == (0,)
     for dispatch, expected in (("tied", tuple(range(n))), ("all", unfloored)):

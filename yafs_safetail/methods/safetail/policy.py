@@ -86,11 +86,13 @@ class SafeTailPolicy(Policy):
         if dispatch not in SAFETAIL_DISPATCH:
             raise PolicyError(f"SafeTail: unknown dispatch {dispatch!r}; valid: {', '.join(SAFETAIL_DISPATCH)}")
         self.dispatch = dispatch
-        # Added to each action's price when choosing greedily: +inf for a subset too small to
-        # be sent as a tied request (no floor for §III's learner, for "all", or with one server).
-        sizes = membership_matrix(n_servers).sum(axis=1)
-        floor = TIED_MIN_COPIES if (dispatch == "tied" and self._reward is None and n_servers >= TIED_MIN_COPIES) else 1
-        self._too_few_copies = np.where(sizes < floor, np.inf, 0.0)
+        self._membership = membership_matrix(n_servers)
+        # Added to each action's price when choosing greedily: +inf for a subset too small to be
+        # sent as a tied request. None (nothing to add) for §III's learner, for "all", and with
+        # one server, which has no sibling to send.
+        self._too_few_copies: np.ndarray | None = None
+        if dispatch == "tied" and self._reward is None and n_servers >= TIED_MIN_COPIES:
+            self._too_few_copies = np.where(self._membership.sum(axis=1) < TIED_MIN_COPIES, np.inf, 0.0)
         self.decision_time_s = 0.0
         self.training_time_s = 0.0
         # Per request in flight: the state, the action, ε, and the price of its copies.
@@ -104,8 +106,9 @@ class SafeTailPolicy(Policy):
         if self._reward is None:
             # The latency-cost reward: the network predicts each action's latency score, and the
             # price of its copies, known now, is subtracted exactly rather than learned.
-            prices = copy_price(membership_matrix(self.n_servers) @ observation.server_active_users)
-            action = self.learner.act(state, explore=self.training, action_cost=prices + self._too_few_copies)
+            prices = copy_price(self._membership @ observation.server_active_users)
+            floored = prices if self._too_few_copies is None else prices + self._too_few_copies
+            action = self.learner.act(state, explore=self.training, action_cost=floored)
             price = float(prices[action])
         else:
             action = self.learner.act(state, explore=self.training)
