@@ -50,7 +50,7 @@ from yafs_safetail.contention.sweep import (
     plot_sweep,
     seeds_markdown,
 )
-from yafs_safetail.contention.world import ContentionConfig, ContentionError
+from yafs_safetail.contention.world import LINK_MODELS, ContentionConfig, ContentionError
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.methods.registry import make_baseline
 from yafs_safetail.methods.safetail.policy import SAFETAIL_DISPATCH
@@ -95,7 +95,7 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
     _write_csv(folder / SWEEP_FILE, frame)
     table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
     write_text_atomic(folder / "SWEEP.md",
-                      f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, seed {seed})\n\n"
+                      f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, {args.links} links, seed {seed})\n\n"
                       + _safetail_line(args, config) + f"`{command}`\n\n" + markdown_table(table)
                       + "\n\n## Goals\n\n" + checks_markdown(frame))
     plot_sweep(frame, folder)
@@ -104,7 +104,7 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
         "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": seed,
         "steps_scale": args.steps_scale, "preset": args.preset, "reward": config.safetail_reward, "target": args.target,
         "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
-        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background,
+        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background, "links": args.links,
         "methods": list(config.methods), "safetail": config.safetail, "train_requests": config.train_requests,
         "test_requests": config.test_requests, "value_networks": config.n_value_networks,
         "topology": str(args.topology),
@@ -161,6 +161,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
+    parser.add_argument("--links", choices=LINK_MODELS, default="shared",
+                        help="transfers share each server's links over their duration (default) or take "
+                             "the bandwidth of the level when they start (at-start, the single-user reading)")
     parser.add_argument("--background", action="store_true",
                         help="add the load trace's background tenants on top of the users' load")
     parser.add_argument("--user-conditions", default="topology",
@@ -188,7 +191,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     config = SweepConfig(
         base=ContentionConfig(use_case=args.uc, seed=seed_list[0], users=args.users,
                               queue=args.servers == "queue", cancel=not args.no_cancel,
-                              background=args.background, topology=args.topology,
+                              background=args.background, links=args.links, topology=args.topology,
                               placement=args.placement, user_conditions=args.user_conditions),
         loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
         steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
@@ -227,7 +230,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         comparison = seeds_markdown(frames)
         write_text_atomic(out / "SEEDS.md",
                           f"# Load sweep over {len(seed_list)} seeds (use case {args.uc}, {args.users} users, "
-                          f"{args.servers}, seeds {', '.join(map(str, seed_list))})\n\n"
+                          f"{args.servers}, {args.links} links, seeds {', '.join(map(str, seed_list))})\n\n"
                           + _safetail_line(args, config) + f"`{command}`\n\n" + comparison)
         write_text_atomic(out / "run.json", json.dumps({
             "package_version": __version__, "command": command, "kind": SEEDS_KIND, "seeds": list(seed_list),

@@ -142,3 +142,85 @@ def test_hedge_without_a_delay_yet_sends_one_copy_and_ends():
                        queue=True)
     assert result.latency_s.tolist() == pytest.approx([1.5, 1.5])
     assert result.n_copies.tolist() == [1, 1] and result.end_s < 10
+
+
+def link_engine(input_s, output_s, emit, plan, *, shared=True, cancel=True, background=(),
+                period_s=math.inf, work=None):
+    """Servers with two contention levels; ``input_s[j][i]`` and ``output_s[j][i]`` are request
+    j's one-way transfer terms to server i at levels 0 and 1 (a pair); no propagation."""
+    n_servers = len(input_s[0])
+    n = len(input_s)
+    flat = [lambda table, j=j: [t for pair in table[j] for t in pair] for j in range(n)]
+    block = RequestBlock(first=0, input_transfer_s=[flat[j](input_s) for j in range(n)],
+                         output_transfer_s=[flat[j](output_s) for j in range(n)],
+                         propagation_s=[[0.0] * n_servers for _ in range(n)],
+                         work_s=work or [[0.0] * n_servers for _ in range(n)])
+    settings = EngineSettings(servers=tuple(ServerSpec(4, (1.0,) * 8) for _ in range(n_servers)),
+                              contention_levels=2, queue=False, cancel=cancel, fallback_latency_s=99.0,
+                              shared_links=shared, background_period_s=period_s, background=background)
+    dispatcher = Fixed(plan)
+    return run_engine(settings, emit, n, lambda _: block, dispatcher), dispatcher
+
+
+ALONE_SHARED = (0.5, 1.0)  # a one-way term of 0.5 s alone, 1.0 s with one other user: 1 s or 2 s whole
+NOTHING = (0.0, 0.0)
+
+
+def test_transfers_on_one_link_share_it_for_as_long_as_they_overlap():
+    # A alone for 0.5 s does half its 1 s transfer; then both at level 1 (2 s each): A's last half
+    # takes 1 s (ends at 1.5) while B does half of its own; B's last half alone: ends at 2.0.
+    result, dispatcher = link_engine([[ALONE_SHARED], [ALONE_SHARED]], [[NOTHING], [NOTHING]],
+                                     [0.0, 0.5], [(0,), (0,)])
+    assert result.latency_s.tolist() == pytest.approx([1.5, 1.5])
+    by_request = {o.request: o for o in dispatcher.outcomes}
+    assert by_request[0].input_transfer_s == pytest.approx(0.75)  # half the 1.5 s it took
+    # Read at the start instead: neither sees the other (B's level counts users at the server,
+    # and A is still on its way).
+    at_start, _ = link_engine([[ALONE_SHARED], [ALONE_SHARED]], [[NOTHING], [NOTHING]],
+                              [0.0, 0.5], [(0,), (0,)], shared=False)
+    assert at_start.latency_s.tolist() == pytest.approx([1.0, 1.0])
+
+
+def test_a_server_s_down_and_up_links_are_apart():
+    # A's reply (1 s on the up link, from 0) overlaps B's input (1 s on the down link, from 0.5):
+    # neither slows the other.
+    result, _ = link_engine([[NOTHING], [ALONE_SHARED]], [[ALONE_SHARED], [NOTHING]],
+                            [0.0, 0.5], [(0,), (0,)])
+    assert result.latency_s.tolist() == pytest.approx([1.0, 1.0])
+
+
+def test_background_tenants_count_and_their_change_moves_the_transfer_s_end():
+    # A tenant arrives at 0.5: A's last half then runs at level 1 (2 s whole): ends at 1.5.
+    result, _ = link_engine([[ALONE_SHARED]], [[NOTHING]], [0.0], [(0,)],
+                            background=((0,), (1,), (1,), (1,)), period_s=0.5)
+    assert result.latency_s[0] == pytest.approx(1.5)
+    # It leaves again at 1.0 (the rows repeat): the last quarter runs alone, 0.25 s.
+    back_and_forth, _ = link_engine([[ALONE_SHARED]], [[NOTHING]], [0.0], [(0,)],
+                                    background=((0,), (1,)), period_s=0.5)
+    assert back_and_forth.latency_s[0] == pytest.approx(1.25)
+
+
+def test_a_cancelled_transfer_leaves_its_link_to_the_others():
+    # Request 0 goes to servers 0 (instant) and 1 (a long input); request 1 shares server 1's
+    # down link. Request 0's reply at 0 cancels its copy on server 1 at once (no propagation),
+    # so request 1's transfer runs alone: 1 s. Without cancellation it shares the link: 2 s.
+    inputs = [[NOTHING, (5.0, 10.0)], [NOTHING, ALONE_SHARED]]
+    outputs = [[NOTHING, NOTHING], [NOTHING, NOTHING]]
+    result, _ = link_engine(inputs, outputs, [0.0, 0.0], [(0, 1), (1,)])
+    kept, _ = link_engine(inputs, outputs, [0.0, 0.0], [(0, 1), (1,)], cancel=False)
+    assert result.latency_s[1] == pytest.approx(1.0)
+    assert kept.latency_s[1] == pytest.approx(2.0)
+    assert result.cancelled_copies == 1
+
+
+def test_a_reply_still_on_its_up_link_is_cancelled_and_frees_it():
+    # Request 0's copy on server 0 answers after 0.2 s of work; its copy on server 1 (no work) is
+    # sending a long reply on server 1's up link, shared with request 1's reply; the cancel
+    # stops that reply at 0.2, after which request 1's runs alone.
+    inputs = [[NOTHING, NOTHING], [NOTHING, NOTHING]]
+    outputs = [[NOTHING, (5.0, 10.0)], [NOTHING, ALONE_SHARED]]
+    work = [[0.2, 0.0], [0.0, 0.0]]
+    result, _ = link_engine(inputs, outputs, [0.0, 0.0], [(0, 1), (1,)], work=work)
+    # Request 1: 0.2 s at level 1 (a tenth of its 2 s), then 0.9 of 1 s alone: 1.1 s.
+    assert result.latency_s.tolist() == pytest.approx([0.2, 1.1])
+    assert result.cancelled_copies == 1

@@ -15,6 +15,7 @@ import pytest
 from yafs_safetail.contention.run import PolicyDispatcher, run_policy, summarise
 from yafs_safetail.contention.sweep import SweepConfig
 from yafs_safetail.contention.world import (
+    LINK_MODELS,
     ContentionConfig,
     ContentionError,
     ContentionWorld,
@@ -38,17 +39,69 @@ def busy_world() -> ContentionWorld:
                                             block_requests=1000))
 
 
-def test_one_user_alone_gets_eq1_latency():
+@pytest.mark.parametrize("links", LINK_MODELS)
+def test_one_user_alone_gets_eq1_latency(links):
     # Requests far apart, no background: every copy runs alone, so its latency is Eq. 1 with
-    # the one-process compute time (transfers and RTT at contention level 0).
+    # the one-process compute time (transfers and RTT at contention level 0), however the links
+    # are shared.
     world = ContentionWorld(ContentionConfig(n_requests=50, users=1, rate_per_user_hz=1e-3,
-                                             background=False, block_requests=50))
+                                             background=False, block_requests=50, links=links))
     run = run_policy(world, policy("MinProp-1"))
     block = world.block_world(0)
     server = 0  # the nearest server in the paper topology
     expected = (2 * block.input_transfer_by_level_s[:, server, 0] + 2 * block.rtt_s[:, server]
                 + block.compute_by_processes_s[:, server, 0] + 2 * block.output_transfer_by_level_s[:, server, 0])
     np.testing.assert_allclose(run.result.latency_s, expected, rtol=1e-9)
+
+
+class RecordingPairs:
+    """Two random servers per request; keeps every outcome."""
+
+    mode = "all"
+    wants_outcomes = True
+
+    def __init__(self, n_servers: int) -> None:
+        self.rng = np.random.default_rng(1)
+        self.n_servers = n_servers
+        self.outcomes: list = []
+
+    def choose(self, request, active_users):
+        return tuple(self.rng.choice(self.n_servers, size=2, replace=False).tolist())
+
+    def hedge_delay_s(self):
+        return float("inf")
+
+    def completed(self, outcome):
+        self.outcomes.append(outcome)
+
+
+def test_shared_links_keep_each_transfer_between_its_fastest_and_slowest_level():
+    # Under load (background on, two copies per request), a shared transfer changes pace as
+    # others come and go: the time it takes lies between its times at the lowest and highest
+    # contention levels. Read at the start instead, it is exactly one level's time.
+    from yafs_safetail.contention.engine import run_engine
+
+    config = ContentionConfig(n_requests=2000, users=20, load=0.6, seed=4, queue=True, block_requests=2000)
+    levels_seen = {}
+    for links in LINK_MODELS:
+        world = ContentionWorld(replace(config, links=links))
+        tables = world.block(0)
+        dispatcher = RecordingPairs(world.n_servers)
+        run_engine(world.engine_settings(), world.emit_s.tolist(), 2000, world.block, dispatcher)
+        levels = world.inputs.n_contention_levels
+        inside = exact = 0
+        for outcome in dispatcher.outcomes:
+            if outcome.fallback:
+                continue
+            base = outcome.winner * levels
+            by_level = tables.input_transfer_s[outcome.request][base:base + levels]
+            inside += min(by_level) - 1e-9 <= outcome.input_transfer_s <= max(by_level) + 1e-9
+            exact += any(abs(outcome.input_transfer_s - t) <= 1e-12 for t in by_level)
+        levels_seen[links] = (inside, exact, len(dispatcher.outcomes))
+    inside, exact, total = levels_seen["shared"]
+    assert inside == total and exact < total  # some transfers changed pace on the way
+    inside, exact, total = levels_seen["at-start"]
+    assert inside == exact == total
 
 
 def test_same_seed_same_results_and_common_random_numbers(busy_world):
@@ -137,6 +190,7 @@ def test_arrivals_from_a_trace_and_its_errors(tmp_path):
     ({"load": None}, "give one of them"),
     ({"rate_per_user_hz": float("nan")}, "--rate-per-user: expected a positive number"),
     ({"load": -1.0}, "--load: expected a positive number"),
+    ({"links": "both"}, "--links: expected one of shared, at-start, got 'both'"),
 ])
 def test_bad_settings_are_one_line(changes, message):
     with pytest.raises(ContentionError, match=message):
@@ -326,14 +380,18 @@ def test_feedback_records_carry_the_target_asked_for():
         run_policy(world, eq4, target="queue-aware")
 
 
-def test_load_sweep_target_option(tmp_path):
+def test_load_sweep_target_and_links_options(tmp_path):
     out = tmp_path / "sweep"
     done = subprocess.run([sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
-                           "--methods", "Oracle", "--target", "observed-load", "--out", str(out)],
+                           "--methods", "Oracle", "--target", "observed-load", "--links", "at-start",
+                           "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    assert json.loads((out / "run.json").read_text())["target"] == "observed-load"
-    assert json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]["target"] == "observed-load"
+    run = json.loads((out / "run.json").read_text())
+    assert run["target"] == "observed-load" and run["links"] == "at-start"
+    settings = json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]
+    assert settings["target"] == "observed-load" and settings["links"] == "at-start"
+    assert "queue, at-start links, seed 0" in (out / "SWEEP.md").read_text()
     bad = subprocess.run([sys.executable, str(SWEEP), "--target", "queue", "--out", str(tmp_path / "b")],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--target" in bad.stderr and len(bad.stderr.splitlines()) == 1

@@ -5,6 +5,13 @@ This module knows nothing of traces, use cases or policies. It sees
 * servers: a number of slots each, a per-job speed for every occupancy (processor sharing: the
   running jobs split the server equally, so each progresses at ``speed[n]`` when ``n`` jobs run),
   and either refusal when the slots are full (the paper) or a FIFO waiting queue;
+* links: each server's down link (inputs) and up link (outputs). With ``shared_links`` (the
+  default) a transfer is processor-shared over its whole duration: it progresses at 1/T(L) of
+  itself per second, T(L) being its transfer time at contention level L = the server's
+  background tenants plus the other transfers on that link *now*, so every transfer that starts
+  or ends on a link moves the end of the others there. Otherwise a transfer takes T(L) at the
+  level when it starts, L counting every active user at the server (the single-user world's
+  reading);
 * requests: an emission time and, per server, the copy's delays and work (``RequestBlock``);
 * a :class:`Dispatcher` that picks the servers of each request and hears how it ended.
 
@@ -41,14 +48,19 @@ from yafs_safetail.contention.types import (
 __all__ = ["DISPATCH_MODES", "Dispatcher", "EngineError", "EngineResult", "EngineSettings",
            "RequestBlock", "RequestOutcome", "ServerSpec", "run_engine"]
 
-# Copy record fields (a copy is a small list, dropped once settled).
-_REQ, _SERVER, _STATE, _WORK, _RTT, _OUT, _IN, _ARRIVE, _START, _END = range(10)
+# Copy record fields (a copy is a small list, dropped once settled). _LINK is the link the copy
+# is transferring on (2 * server for its input, 2 * server + 1 for its output) or -1; _LEFT is
+# the fraction of that transfer left at _LSINCE, _LDUR the whole transfer's time at the link's
+# current level, _LVER its completion event's version, _LTABLE its time per level, _LSTART when
+# it began.
+(_REQ, _SERVER, _STATE, _WORK, _RTT, _OUT, _IN, _ARRIVE, _START, _END,
+ _LINK, _LEFT, _LSINCE, _LDUR, _LVER, _LTABLE, _LSTART) = range(17)
 # Copy states.
 _TRANSIT, _QUEUED, _RUNNING, _REPLYING, _DONE, _CANCELLED, _REFUSED = range(7)
 # Request record fields.
 _R_INDEX, _R_EMIT, _R_COPIES, _R_DONE, _R_REFUSED, _R_PENDING, _R_TIED = range(7)
 # Event kinds.
-_AT_SERVER, _SERVER_DONE, _REPLY, _CANCEL, _HEDGE, _BACKGROUND = range(6)
+_AT_SERVER, _SERVER_DONE, _REPLY, _CANCEL, _HEDGE, _BACKGROUND, _LINK_DONE = range(7)
 
 
 def run_engine(
@@ -76,6 +88,7 @@ def run_engine(
     top_level = levels - 1
     queue_mode = settings.queue
     cancel_mode = settings.cancel
+    shared_links = settings.shared_links
     fallback_s = settings.fallback_latency_s
     hedge_mode = dispatcher.mode == "hedge"
     tied_mode = dispatcher.mode == "tied"
@@ -93,6 +106,7 @@ def run_engine(
     version = [0] * n_servers
     jobs: list[list[tuple[float, int, list]]] = [[] for _ in range(n_servers)]
     queues: list[deque[list]] = [deque() for _ in range(n_servers)]
+    links: list[list[list]] = [[] for _ in range(2 * n_servers)]  # copies transferring per link
 
     latency = np.full(n_requests, np.nan)
     n_copies = np.zeros(n_requests, dtype=np.int64)
@@ -169,6 +183,43 @@ def run_engine(
             fill_from_queue(i)
         reschedule(i)
 
+    def link_changed(link: int) -> None:
+        # The link's number of transfers (or its server's background) changed: bring every
+        # transfer on it up to now at its old pace and reschedule its end at the new level.
+        nonlocal seq
+        active = links[link]
+        level = background[link >> 1] + len(active) - 1
+        if level > top_level:
+            level = top_level
+        for copy in active:
+            whole_s = copy[_LDUR]
+            if whole_s > 0.0:
+                copy[_LEFT] -= (now - copy[_LSINCE]) / whole_s
+            copy[_LSINCE] = now
+            whole_s = 2.0 * copy[_LTABLE][level]
+            copy[_LDUR] = whole_s
+            copy[_LVER] += 1
+            left = copy[_LEFT]
+            push(events, (now + left * whole_s if left > 0.0 else now, seq, _LINK_DONE, copy, copy[_LVER]))
+            seq += 1
+
+    def start_transfer(copy: list, link: int, by_level: Sequence[float]) -> None:
+        copy[_LINK] = link
+        copy[_LEFT] = 1.0
+        copy[_LSINCE] = now
+        copy[_LDUR] = 0.0
+        copy[_LTABLE] = by_level
+        copy[_LSTART] = now
+        links[link].append(copy)
+        link_changed(link)
+
+    def leave_link(copy: list) -> None:
+        link = copy[_LINK]
+        links[link].remove(copy)
+        copy[_LINK] = -1
+        if links[link]:
+            link_changed(link)
+
     def send_cancel(copy: list) -> None:
         nonlocal seq
         push(events, (now + copy[_RTT], seq, _CANCEL, copy, None))
@@ -196,16 +247,24 @@ def run_engine(
 
     def send(req: list, i: int, tables: RequestBlock, r: int) -> None:
         nonlocal seq
-        others = own[i] + waiting[i] + background[i]
-        level = others if others < top_level else top_level
         base = i * levels
-        in_s = tables.input_transfer_s[r][base + level]
         rtt = tables.propagation_s[r][i]
-        # The output's transfer term is read at its level when the copy finishes computing.
+        # The output's transfer term is read when the copy finishes computing.
         out_by_level = tables.output_transfer_s[r][base:base + levels]
-        copy = [req, i, _TRANSIT, tables.work_s[r][i], rtt, out_by_level, in_s, 0.0, 0.0, 0.0]
+        copy = [req, i, _TRANSIT, tables.work_s[r][i], rtt, out_by_level, 0.0, 0.0, 0.0, 0.0,
+                -1, 0.0, 0.0, 0.0, 0, None, 0.0]
         req[_R_COPIES].append(copy)
         n_copies[req[_R_INDEX]] += 1
+        if shared_links:
+            in_by_level = tables.input_transfer_s[r][base:base + levels]
+            if any(in_by_level):
+                start_transfer(copy, 2 * i, in_by_level)
+                return
+            in_s = 0.0  # nothing to send: the link is not used
+        else:
+            others = own[i] + waiting[i] + background[i]
+            in_s = tables.input_transfer_s[r][base + (others if others < top_level else top_level)]
+            copy[_IN] = in_s
         push(events, (now + 2.0 * in_s + rtt, seq, _AT_SERVER, copy, None))
         seq += 1
 
@@ -266,11 +325,18 @@ def run_engine(
                 own[i] -= 1
                 busy_s += now - copy[_START]
                 copy[_STATE] = _REPLYING
-                others = own[i] + waiting[i] + background[i]
-                level = others if others < top_level else top_level
-                out_s = copy[_OUT][level]
-                copy[_OUT] = (out_s,)
                 copy[_END] = now
+                if shared_links:
+                    out_by_level = copy[_OUT]
+                    if any(out_by_level):
+                        start_transfer(copy, 2 * i + 1, out_by_level)
+                        continue
+                    out_s = 0.0
+                else:
+                    others = own[i] + waiting[i] + background[i]
+                    level = others if others < top_level else top_level
+                    out_s = copy[_OUT][level]
+                copy[_OUT] = (out_s,)
                 push(events, (now + 2.0 * out_s + copy[_RTT], seq, _REPLY, copy, None))
                 seq += 1
             occupancy_changed(i)
@@ -307,12 +373,16 @@ def run_engine(
             req[_R_PENDING] = None
             if cancel_mode:
                 for other in req[_R_COPIES]:
-                    if other[_STATE] <= _RUNNING:
+                    # (A reply still on its up link is cancelled too; _LINK is -1 otherwise.)
+                    if other[_STATE] <= _RUNNING or other[_LINK] >= 0:
                         send_cancel(other)
         elif kind == _CANCEL:
             copy = a
             state = copy[_STATE]
-            if state == _TRANSIT:
+            if state == _TRANSIT or (state == _REPLYING and copy[_LINK] >= 0):
+                # Still being sent (its input, or its reply on the up link): the transfer stops.
+                if copy[_LINK] >= 0:
+                    leave_link(copy)
                 copy[_STATE] = _CANCELLED
                 cancelled_copies += 1
             elif state == _QUEUED:
@@ -327,6 +397,20 @@ def run_engine(
                 busy_s += now - copy[_START]
                 cancelled_copies += 1
                 occupancy_changed(i)
+        elif kind == _LINK_DONE:
+            copy = a
+            if b != copy[_LVER] or copy[_LINK] < 0:
+                continue
+            link = copy[_LINK]
+            term_s = 0.5 * (now - copy[_LSTART])  # one of Eq. 1's two equal transfer terms
+            leave_link(copy)
+            if link & 1:
+                copy[_OUT] = (term_s,)
+                push(events, (now + copy[_RTT], seq, _REPLY, copy, None))
+            else:
+                copy[_IN] = term_s
+                push(events, (now + copy[_RTT], seq, _AT_SERVER, copy, None))
+            seq += 1
         elif kind == _HEDGE:
             req = a
             if not req[_R_DONE]:
@@ -338,6 +422,10 @@ def run_engine(
                     advance(i)
                     background[i] = row[i]
                     occupancy_changed(i)
+                    if shared_links:
+                        for link in (2 * i, 2 * i + 1):
+                            if links[link]:
+                                link_changed(link)
             # Background changes only matter while requests remain.
             if next_request < n_requests or events:
                 push(events, (now + period_s, seq, _BACKGROUND, a + 1, None))

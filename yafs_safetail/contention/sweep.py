@@ -193,6 +193,7 @@ def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
     return {
         "use_case": base.use_case, "users": base.users, "load": load, "seed": base.seed,
         "queue": base.queue, "cancel": base.cancel, "background": base.background, "world": base.world,
+        "links": base.links,
         "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
         "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
         "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
@@ -227,7 +228,8 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
     base = ContentionConfig(
         use_case=settings["use_case"], users=settings["users"], seed=settings["seed"],
         queue=settings["queue"], cancel=settings["cancel"], background=settings["background"],
-        world=settings["world"], topology=Path(settings["topology"]), placement=Path(settings["placement"]),
+        # Absent from the folders of earlier versions, whose links were read at the start.
+        links=settings.get("links", "at-start"), world=settings["world"], topology=Path(settings["topology"]), placement=Path(settings["placement"]),
         user_conditions=settings["user_conditions"])
     return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
                        safetail=settings["safetail"], preset=settings["preset"],

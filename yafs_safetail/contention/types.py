@@ -115,8 +115,11 @@ class EngineSettings:
 
     Attributes:
         servers: one spec per server.
-        contention_levels: L, the number of bandwidth levels in the request tables (a copy's
-            transfer uses level min(other active users at the server, L - 1)).
+        contention_levels: L, the number of bandwidth levels in the request tables.
+        shared_links: True: a transfer is processor-shared over its duration, at level
+            min(background tenants + other transfers on the same link, L - 1) as that changes;
+            False: it takes its time at level min(other active users at the server, L - 1) when
+            it starts (the single-user world's reading).
         queue: a FIFO waiting queue instead of refusal when the slots are full.
         cancel: cancel a request's other copies when its first reply arrives (the cancel
             message takes the server's one-way propagation ρ to get there).
@@ -130,6 +133,7 @@ class EngineSettings:
     queue: bool
     cancel: bool
     fallback_latency_s: float
+    shared_links: bool = True
     background_period_s: float = math.inf
     background: tuple[tuple[int, ...], ...] = ()
 
@@ -141,7 +145,8 @@ class EngineResult:
     Attributes:
         emit_s, latency_s, n_copies, refused, fallback, winner: as in :class:`RequestOutcome`.
         busy_s: total server time copies spent running, over the run (work that counted or not).
-        cancelled_copies: copies cancelled before they finished.
+        cancelled_copies: copies cancelled before they finished (computing, or sending their
+            reply on a shared up link).
         end_s: simulated time when the last event was processed.
     """
 

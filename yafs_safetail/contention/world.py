@@ -15,9 +15,14 @@ What changes from the paper's single-user world (``edge.world``), and what does 
   the server's CPU equally (processor sharing); each progresses at T(1)/T(n) of its one-process
   speed when n run, T(k) being the traces' median compute time at k processes (beyond the traced
   k, in proportion to n), times the server's IPT over ``REFERENCE_SERVER_IPT``.
-* **Links.** A copy's transfer uses the measured bandwidth of its server's contention level, the
-  number of other users active there (ours and background) when the transfer starts, as in the
-  single-user world; the traces measured what an equal share of the WiFi gives.
+* **Links.** Each server has a down link (the copies' inputs) and an up link (their replies).
+  The transfers on a link and the server's background tenants share it (processor sharing over
+  the transfer's duration, ``links="shared"``): a transfer progresses at the measured bandwidth
+  of contention level L = the tenants plus the other transfers on that link, re-read whenever
+  either changes; the traces measured what an equal share of the WiFi gives at each L, each
+  request's own Λ^u, Λ^d capping it as in Eq. 1. Copies computing or waiting do not use a
+  link. ``links="at-start"`` keeps the single-user world's reading instead: the level is the
+  number of other users active at the server (ours and background) when the transfer starts.
 * **Background tenants.** The load trace's users, as in the single-user world, change every
   ``background_period_s`` (one trace row, 60 s); they hold slots and CPU share but send nothing.
 
@@ -51,6 +56,8 @@ from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, build_world
 DEFAULT_BLOCK_REQUESTS = 20_000
 #: How often the background tenants change: one load-trace row (a minute).
 BACKGROUND_PERIOD_S = 60.0
+#: How transfers share a server's links (see the module's docstring).
+LINK_MODELS: tuple[str, ...] = ("shared", "at-start")
 
 
 class ContentionError(ValueError):
@@ -75,6 +82,8 @@ class ContentionConfig:
         queue: FIFO waiting queue at a full server instead of refusal.
         cancel: cancel the other copies when the first reply arrives.
         background: the load trace's background tenants (False: the servers serve only the users).
+        links: ``"shared"`` (processor sharing over each transfer) or ``"at-start"`` (the level
+            when the transfer starts); :data:`LINK_MODELS`.
         world: the world's readings and calibrated parameters (``"calibrated"`` or ``"landed"``).
         topology: topology JSON (per-server ``IPT`` and ``capacity`` are read here).
         placement: placement JSON.
@@ -97,6 +106,7 @@ class ContentionConfig:
     queue: bool = False
     cancel: bool = True
     background: bool = True
+    links: str = "shared"
     world: str = "calibrated"
     topology: Path = DEFAULT_TOPOLOGY
     placement: Path = DEFAULT_PLACEMENT
@@ -238,6 +248,7 @@ class ContentionWorld:
             contention_levels=self.inputs.n_contention_levels,
             queue=config.queue if queue is None else queue,
             cancel=config.cancel if cancel is None else cancel,
+            shared_links=config.links == "shared",
             fallback_latency_s=self.fallback_latency_s,
             background_period_s=BACKGROUND_PERIOD_S,
             background=background,
@@ -411,6 +422,8 @@ def _check(config: ContentionConfig) -> None:
     positive_int("--users", config.users)
     positive_int("--requests", config.n_requests)
     positive_int("block_requests", config.block_requests)
+    if config.links not in LINK_MODELS:
+        raise ContentionError(f"--links: expected one of {', '.join(LINK_MODELS)}, got {config.links!r}")
     if config.arrivals_csv is None:
         if config.load is None and config.rate_per_user_hz is None:
             raise ContentionError("--load / --rate-per-user: give one of them")
