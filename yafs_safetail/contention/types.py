@@ -52,8 +52,10 @@ class RequestOutcome:
         refused: copies refused (server full) before the request ended.
         fallback: every copy was refused; the on-device version answered.
         winner: the server of the first reply (-1 for a fallback).
-        input_transfer_s: the winning copy's one-way input transfer term (NaN for a fallback).
-        output_transfer_s: its output transfer term.
+        input_transfer_s: the winning copy's one-way input transfer term, as it happened (half
+            the time its input took, on a shared link at whatever levels it met; NaN for a
+            fallback).
+        output_transfer_s: its output transfer term, likewise.
         propagation_s: its one-way propagation ρ.
         server_s: from its arrival at the server to its end of service (waiting + computing).
     """
