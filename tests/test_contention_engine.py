@@ -38,13 +38,23 @@ class Fixed:
 
 
 def engine(work, emit, plan, *, slots=1, speed=(1.0, 1.0, 0.5, 1 / 3), queue=False, cancel=True,
-           rtt=0.0, mode="all", delay_s=math.inf, fallback_s=99.0):
+           rtt=0.0, mode="all", delay_s=math.inf, fallback_s=99.0, input_s=None, output_s=None,
+           shared=True, background=(), period_s=math.inf):
+    """``input_s[j][i]`` and ``output_s[j][i]``: request j's one-way transfer terms to server i,
+    one per contention level (the same number for every entry); None: no transfers."""
     n_servers = len(work[0])
-    zeros = [[0.0] * n_servers for _ in work]
-    block = RequestBlock(first=0, input_transfer_s=zeros, output_transfer_s=zeros,
+
+    def flat(table):  # [j][i][level] -> [j][i * levels + level]
+        return [[t for by_level in row for t in by_level] for row in table]
+
+    no_transfer = [[(0.0,)] * n_servers for _ in work]
+    inputs, outputs = flat(input_s or no_transfer), flat(output_s or no_transfer)
+    block = RequestBlock(first=0, input_transfer_s=inputs, output_transfer_s=outputs,
                          propagation_s=[[rtt] * n_servers for _ in work], work_s=work)
     settings = EngineSettings(servers=tuple(ServerSpec(slots, speed) for _ in range(n_servers)),
-                              contention_levels=1, queue=queue, cancel=cancel, fallback_latency_s=fallback_s)
+                              contention_levels=len(inputs[0]) // n_servers, queue=queue, cancel=cancel,
+                              fallback_latency_s=fallback_s, shared_links=shared,
+                              background_period_s=period_s, background=background)
     dispatcher = Fixed(plan, mode, delay_s)
     return run_engine(settings, emit, len(work), lambda _: block, dispatcher), dispatcher
 
@@ -144,22 +154,12 @@ def test_hedge_without_a_delay_yet_sends_one_copy_and_ends():
     assert result.n_copies.tolist() == [1, 1] and result.end_s < 10
 
 
-def link_engine(input_s, output_s, emit, plan, *, shared=True, cancel=True, background=(),
-                period_s=math.inf, work=None):
-    """Servers with two contention levels; ``input_s[j][i]`` and ``output_s[j][i]`` are request
-    j's one-way transfer terms to server i at levels 0 and 1 (a pair); no propagation."""
-    n_servers = len(input_s[0])
-    n = len(input_s)
-    flat = [lambda table, j=j: [t for pair in table[j] for t in pair] for j in range(n)]
-    block = RequestBlock(first=0, input_transfer_s=[flat[j](input_s) for j in range(n)],
-                         output_transfer_s=[flat[j](output_s) for j in range(n)],
-                         propagation_s=[[0.0] * n_servers for _ in range(n)],
-                         work_s=work or [[0.0] * n_servers for _ in range(n)])
-    settings = EngineSettings(servers=tuple(ServerSpec(4, (1.0,) * 8) for _ in range(n_servers)),
-                              contention_levels=2, queue=False, cancel=cancel, fallback_latency_s=99.0,
-                              shared_links=shared, background_period_s=period_s, background=background)
-    dispatcher = Fixed(plan)
-    return run_engine(settings, emit, n, lambda _: block, dispatcher), dispatcher
+def link_engine(input_s, output_s, emit, plan, *, work=None, **options):
+    """Servers with four slots, full speed and two contention levels (``input_s[j][i]`` is a
+    pair: the term alone and with one other user); no propagation."""
+    work = work or [[0.0] * len(input_s[0]) for _ in input_s]
+    return engine(work, emit, plan, slots=4, speed=(1.0,) * 8, input_s=input_s, output_s=output_s,
+                  **options)
 
 
 ALONE_SHARED = (0.5, 1.0)  # a one-way term of 0.5 s alone, 1.0 s with one other user: 1 s or 2 s whole
