@@ -11,6 +11,10 @@ line each, and the verdict:
     claims_hold=<hits>/<9>                goal: all
     access_rate_uc<N>=<mean>              goal: <= 0.5 on every use case
     uc1_default_run_s=<seconds>           goal: <= 30 s on 2 cores (the seed-0 UC1 run's total)
+    goals_met=...                         the verdict, one word per goal
+    any_policy_ratios_at_most=<lo>-<hi>/23   the most ratios any policy could hold together
+                                          within ±20% in these worlds (per seed; results/feasibility.py)
+    any_policy_claims_at_most=<k>/9 [unreachable=uc<N>:<key>,...]   claims some policy could make hold
 
 Usage::
 
@@ -35,7 +39,7 @@ sys.path.insert(0, str(REPOSITORY / "experiments"))
 import pandas as pd  # noqa: E402
 import reproduce_all  # noqa: E402
 
-from yafs_safetail.results import fidelity  # noqa: E402
+from yafs_safetail.results import feasibility, fidelity  # noqa: E402
 from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment  # noqa: E402
 
 GOALS = {"ratios": 0.8, "held-out": 0.7}
@@ -59,6 +63,7 @@ def main() -> None:
                             *options])
         card = pd.read_csv(out / fidelity.FIDELITY_FILE)
         card = card[card["preset"] == args.preset]
+        worlds = [feasibility.read_world_run(folder) for folder in sorted(out.glob(f"uc*-{args.preset}/seed*"))]
         # The UC1 default run, timed alone (reproduce_all's runs share the machine's cores).
         started = time.perf_counter()
         run_experiment(ExperimentConfig(use_case=1, preset=args.preset, seed=0,
@@ -85,6 +90,11 @@ def main() -> None:
         "uc1_time": full_budget and uc1_s <= 30.0,
     }
     print("goals_met=" + ",".join(f"{k}:{'yes' if v else 'no'}" for k, v in met.items()))
+    # What no policy could exceed in these worlds (Oracle's and the baselines' runs alone).
+    top = feasibility.ceiling(worlds)
+    print(f"any_policy_ratios_at_most={top.ratios_low}-{top.ratios_high}/{top.ratios_total}")
+    print(f"any_policy_claims_at_most={top.claims}/{top.claims_total}"
+          + (f" unreachable={','.join(k.replace(' ', ':') for k in top.unreachable)}" if top.unreachable else ""))
 
 
 if __name__ == "__main__":

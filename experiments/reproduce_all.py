@@ -10,7 +10,10 @@ For every (use case, preset, seed) it runs exactly what ``run_usecase.py`` runs,
 ``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` opens with the fidelity scorecard of
 each preset (every ratio and claim the paper publishes against ours over the seeds, calibration
 subset and held-out numbers apart; also in ``OUT/fidelity.csv`` and the figure
-``OUT/fidelity-<preset>.png``) and gives, per use case and preset: the latency table (mean over
+``OUT/fidelity-<preset>.png``), then what any policy could reach in that world (whether the
+paper's statements about each percentile can hold together at all, from Oracle's and the
+baselines' latencies and the targets alone; ``OUT/feasibility.csv``,
+yafs_safetail/results/feasibility.py), and gives, per use case and preset: the latency table (mean over
 seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones with a plain
 note where they differ, what the learner did (training rounds, final ε, servers used, target
 met, fallbacks) as the first place to look for why, figures across seeds with 95% bands
@@ -53,7 +56,7 @@ from yafs_safetail.figures_multiseed import (
     draw_multiseed_figures,
 )
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
-from yafs_safetail.results import fidelity, latex
+from yafs_safetail.results import feasibility, fidelity, latex
 from yafs_safetail.runs.campaign import add_engine_options, engine_free_command, run_campaign
 from yafs_safetail.runs.experiment import ExperimentError
 from yafs_safetail.runs.grid import expand
@@ -288,6 +291,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     section_tables: dict[str, str] = {}
     speedups = []
     summaries: dict[str, dict[int, list[pd.DataFrame]]] = {p: {} for p in args.preset}
+    worlds: dict[str, list[feasibility.WorldRun]] = {p: [] for p in args.preset}
     for use_case in args.uc:
         for preset in args.preset:
             folders = [args.out / RUN_FOLDER.format(use_case=use_case, preset=preset, seed=seed)
@@ -296,6 +300,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             sections += lines
             section_tables.update(tables)
             summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
+            worlds[preset] += [feasibility.read_world_run(f) for f in folders]
             table = results.aggregate_speedups(folders)
             table.insert(1, "preset", preset)
             speedups.append(table)
@@ -315,7 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "learner trained, how many servers it ended up using and how often it met the target.",
         "",
     ]
-    scorecard_lines, cards = [], []
+    scorecard_lines, cards, checks = [], [], []
     scorecard_tables: dict[str, str] = {}
     for preset in args.preset:
         card = fidelity.scorecard(summaries[preset])
@@ -336,8 +341,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             for part, tex in latex.scorecard_latex(card, preset=preset).items()}
         scorecard_tables.update(card_tables)
         scorecard_lines += [_tex_pointer(*card_tables), ""]
+        checked = feasibility.check_all(worlds[preset])
+        checked.insert(0, "preset", preset)
+        checks.append(checked)
+        scorecard_lines += [
+            f"## What any policy could reach in this world — preset `{preset}`", "",
+            feasibility.ceiling_line(worlds[preset]), "",
+            feasibility.feasibility_markdown(checked).rstrip("\n"), "",
+        ]
     results.write_text_atomic(args.out / fidelity.FIDELITY_FILE,
                               pd.concat(cards, ignore_index=True).to_csv(index=False))
+    results.write_text_atomic(args.out / feasibility.FEASIBILITY_FILE,
+                              pd.concat(checks, ignore_index=True).to_csv(index=False))
     # Tables in the order REPORT.md shows them: scorecards first, then each use case.
     table_paths = latex.write_tables(args.out, {**scorecard_tables, **section_tables})
     report = "\n".join(header + scorecard_lines + sections

@@ -35,8 +35,12 @@ def test_fidelity_benchmark_small_budget(tmp_path):
     lines = done.stdout.strip().splitlines()
     assert any(line.startswith("ratios_within_20=") and line.endswith("/23") for line in lines)
     assert any(line.startswith("claims_hold=") and line.endswith("/9") for line in lines)
-    assert lines[-1].startswith("goals_met=") and "uc1_time:no" in lines[-1]  # not the full budget
+    verdict = next(line for line in lines if line.startswith("goals_met="))
+    assert "uc1_time:no" in verdict  # not the full budget
+    assert any(line.startswith("any_policy_ratios_at_most=") and line.endswith("/23") for line in lines)
+    assert any(line.startswith("any_policy_claims_at_most=") for line in lines)
     assert (tmp_path / "fid" / "fidelity.csv").is_file()
+    assert (tmp_path / "fid" / "feasibility.csv").is_file()
 
 
 def test_core_benchmark_against_a_yafs3_checkout_small_budget(tmp_path):

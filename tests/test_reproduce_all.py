@@ -41,7 +41,7 @@ def _files(out: Path) -> dict[str, bytes]:
     reports, with the --out path taken out of the recorded command lines (the only place it
     appears)."""
     names = [p for p in sorted(out.rglob("*")) if p.is_file() and p.name != RUN_LOG_FILE
-             and (p.parent != out or p.name in ("REPORT.md", "fidelity.csv", "speedups.csv"))]
+             and (p.parent != out or p.name in ("REPORT.md", "fidelity.csv", "feasibility.csv", "speedups.csv"))]
     return {str(p.relative_to(out)): p.read_bytes().replace(str(out).encode(), b"OUT") for p in names}
 
 
@@ -64,6 +64,14 @@ def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
     assert ratios["ours"].gt(0).all() and ratios["n_seeds"].eq(2).all()
     assert (card["kind"] == "claim").sum() == 3
     assert (out / "fidelity-paper.png").is_file() and (out / "fidelity-paper.pdf").is_file()
+    # What any policy could reach: four percentiles per seed, from the runs' Oracle and baselines.
+    assert "## What any policy could reach in this world — preset `paper`" in report
+    assert "Whatever the policy, in these worlds: at most" in report
+    checked = pd.read_csv(out / "feasibility.csv")
+    assert len(checked) == 8 and set(checked["seed"]) == {0, 1} and set(checked["preset"]) == {"paper"}
+    assert (checked["floor_s"] > 0).all() and (checked["low_s"] >= checked["floor_s"]).all()
+    assert not (checked["feasible"] & (checked["low_s"] > checked["high_s"])).any()
+    assert (checked["feasible"] | (checked["low_s"] >= checked["high_s"])).all()
     speedups = pd.read_csv(out / "speedups.csv")
     assert set(speedups["preset"]) == {"paper"}
     stated = speedups[speedups["paper"].notna()]
@@ -139,3 +147,20 @@ def test_latex_tables_and_band_figures_beside_the_report(uncut: Path) -> None:
             assert (out / "figures" / f"{stem}{suffix}").stat().st_size > 0
         assert f"(figures/{stem}.png)" in report
     assert not (out / "uc1-paper" / "seed0" / "figures").exists()
+
+
+def test_a_run_without_its_fallback_latency_is_one_line_naming_the_file(uncut: Path, tmp_path: Path) -> None:
+    import json
+    import shutil
+
+    from yafs_safetail.results import feasibility
+
+    world = feasibility.read_world_run(uncut / "uc1-paper" / "seed0")
+    assert world.use_case == 1 and world.seed == 0 and world.floor_s[50] <= world.floor_s[99]
+    broken = tmp_path / "seed0"
+    shutil.copytree(uncut / "uc1-paper" / "seed0", broken)
+    run = json.loads((broken / "run.json").read_text())
+    del run["fallback_latency_s"]
+    (broken / "run.json").write_text(json.dumps(run))
+    with pytest.raises(ValueError, match=r"seed0/run.json: key fallback_latency_s: expected a number"):
+        feasibility.read_world_run(broken)

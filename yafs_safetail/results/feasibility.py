@@ -1,0 +1,415 @@
+"""Which of the paper's statements any policy could hold together in one world.
+
+The scorecard (``results/fidelity.py``) says how close SafeTail came to each published number.
+This module asks a question about the *world* instead: given the latencies Oracle and the
+baselines measured, and the targets τ of the requests, is there any SafeTail latency at a
+percentile that satisfies every published statement about that percentile at once? If not, no
+policy, however well trained, can reproduce those statements together in that world, and a
+miss among them is the world's (or the paper's), not the learner's.
+
+Each statement becomes an interval on SafeTail's q-th percentile latency S_q (seconds):
+
+* **the floor**: no policy beats min(Oracle's latency, the on-device fallback) on any request
+  (a policy's reply is the fastest of its accepting servers, or the fallback when all of them
+  refuse, and Oracle asks every server), so S_q ≥ the q-th percentile of that per-request
+  minimum. Computed from Oracle's test rows in ``requests.csv``.
+* **a published ratio r** of SafeTail against a method M, counted as reproduced within ±20%
+  (``fidelity.TOLERANCE``): ``latency(M) / S_q ∈ [0.8 r, 1.2 r]`` for "SafeTail over M",
+  ``S_q / latency(M) ∈ [0.8 r, 1.2 r]`` for "M over SafeTail".
+* **a claim about SafeTail's latency** (``paper.PAPER_CLAIMS``): below the average target
+  (S_q ≤ τ̄), faster than every x = 2, 3 baseline or every baseline (S_q ≤ the smallest of
+  their q-latencies), some baseline faster (S_q ≥ the smallest).
+
+The intersection is empty exactly when two statements contradict each other in this world.
+The claims' inequalities are strict, as the scorecard tests them (a baseline whose p99 is
+Oracle's own cannot be beaten there); each percentile is checked on its own, so this is a
+necessary condition only (generous to the paper): a percentile that passes may still
+be out of reach for a policy that must also hold the claims about how many servers it uses,
+which bound no latency and are not part of the check. SafeTail's own latencies are never read.
+
+Only the single-user world (``run_usecase.py``) makes every method face the same requests with
+the same server states whatever the others choose; that is what makes the floor and the
+baselines' latencies properties of the world.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from yafs_safetail.methods.registry import ORACLE, SAFETAIL, baselines_of, parse_method
+from yafs_safetail.results.files import PERCENTILES, read_requests_csv, read_run_json, read_summary_csv
+from yafs_safetail.results.fidelity import TOLERANCE
+from yafs_safetail.results.paper import PAPER_CLAIMS, PAPER_RATIOS, PERCENTILE_NAMES
+from yafs_safetail.results.report import frame_markdown
+
+FEASIBILITY_FILE = "feasibility.csv"
+
+#: Claims that bound SafeTail's latency: key -> (percentiles, side, reference, label). side
+#: "high": S_q at most the reference; "low": at least it. The reference is the average target
+#: ("target") or the smallest q-latency among the named baselines ("x23": Rand/MinLoad/MinProp
+#: with x = 2 or 3; "all": every Rand/MinLoad/MinProp baseline). The label names the statement
+#: in reports; ``{reference}`` becomes the target or the fastest such baseline.
+LATENCY_CLAIMS: dict[str, tuple[tuple[int, ...], str, str, str]] = {
+    "below_target_all": (PERCENTILES, "high", "target",
+                         "claim: below {reference} at every percentile"),
+    "median_below_target": ((50,), "high", "target", "claim: median below {reference}"),
+    "beats_x23_all": (PERCENTILES, "high", "x23",
+                      "claim: faster than every x = 2, 3 baseline ({reference})"),
+    "safetail_better_p95_p99": ((95, 99), "high", "all",
+                                "claim: faster than every baseline at p95, p99 ({reference})"),
+    "baseline_better_p50_p90": ((50, 90), "low", "all",
+                                "claim: some baseline faster at median, p90 ({reference})"),
+}
+
+FEASIBILITY_COLUMNS: tuple[str, ...] = (
+    "use_case", "seed", "percentile", "floor_s", "low_s", "high_s", "feasible", "low_statement",
+    "high_statement", "n_statements", "give_up",
+)
+#: Joins the statements of ``give_up`` (none of them contains it).
+GIVE_UP_SEPARATOR = " | "
+
+
+@dataclass(frozen=True, slots=True)
+class WorldRun:
+    """What one run tells about its world: never SafeTail's own latencies.
+
+    Attributes:
+        use_case: 1, 2 or 3.
+        seed: the run's seed.
+        summary: the test-phase summary (Oracle's and the baselines' percentiles, τ's mean).
+        floor_s: percentile -> the q-latency no policy can beat (see the module docstring).
+    """
+
+    use_case: int
+    seed: int
+    summary: pd.DataFrame
+    floor_s: Mapping[int, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Bound:
+    """One statement as an interval on SafeTail's q-latency (seconds).
+
+    Attributes:
+        kind: ``floor``, ``ratio`` or ``claim``.
+        key: the claim's key (``paper.PAPER_CLAIMS``); the statement for the others.
+        strict: the end it sets is excluded (the claims: "below", "faster" as
+            ``paper.check_claims`` tests them); the floor and the ±20% ratios include theirs.
+    """
+
+    percentile: int
+    statement: str
+    low_s: float
+    high_s: float
+    kind: str
+    key: str
+    strict: bool = False
+
+
+def floor_percentiles(oracle_latency_s: np.ndarray, fallback_latency_s: float) -> dict[int, float]:
+    """Per percentile, the latency no policy can beat: of min(Oracle's, the fallback) per request.
+
+    Every order statistic of a policy's latencies is at least the same order statistic of
+    these minima, so the interpolated percentile is too (numpy's default, as everywhere).
+    """
+    if oracle_latency_s.size == 0:
+        raise ValueError("no Oracle test rows: the floor needs Oracle's latencies")
+    floor = np.minimum(oracle_latency_s, fallback_latency_s)
+    return {p: float(np.percentile(floor, p)) for p in PERCENTILES}
+
+
+def read_world_run(folder: str | Path) -> WorldRun:
+    """A run folder's world: ``run.json``, ``summary.csv`` and Oracle's rows of ``requests.csv``.
+
+    Raises:
+        ResultsFileError: a file is missing or malformed (one line naming it).
+        ValueError: the run has no Oracle test rows, or ``run.json`` no fallback latency.
+    """
+    folder = Path(folder)
+    run = read_run_json(folder)
+    fallback = run.extra.get("fallback_latency_s")
+    if not isinstance(fallback, (int, float)) or isinstance(fallback, bool):
+        raise ValueError(f"{folder / 'run.json'}: key fallback_latency_s: expected a number, "
+                         f"got {fallback!r}")
+    requests = read_requests_csv(folder / "requests.csv")
+    oracle = requests[(requests["method"] == ORACLE) & (requests["phase"] == "test")]
+    try:
+        floor = floor_percentiles(oracle["latency_s"].to_numpy(float), float(fallback))
+    except ValueError as error:
+        raise ValueError(f"{folder / 'requests.csv'}: {error}") from None
+    return WorldRun(run.use_case, run.seed, read_summary_csv(folder), floor)
+
+
+def _latency(summary: pd.DataFrame, method: str, percentile: int) -> float:
+    row = summary[summary["method"] == method]
+    return math.nan if row.empty else float(row[f"p{percentile}_s"].iloc[0])
+
+
+def _claim_reference(summary: pd.DataFrame, which: str, percentile: int) -> tuple[float, str]:
+    if which == "target":
+        row = summary[summary["method"].isin([SAFETAIL, ORACLE])]
+        # τ is the request's, not the policy's: every method's rows carry the same targets.
+        return (math.nan, "") if row.empty else (float(row["mean_target_s"].iloc[0]),
+                                                  "the average target")
+    names = baselines_of(summary["method"])
+    if which == "x23":
+        names = [b for b in names if parse_method(b)[1] in (2, 3)]
+    if not names:
+        return math.nan, ""
+    latencies = {b: _latency(summary, b, percentile) for b in names}
+    fastest = min(latencies, key=lambda b: latencies[b])
+    return latencies[fastest], fastest
+
+
+def bounds(world: WorldRun) -> list[Bound]:
+    """Every statement the paper makes about ``world.use_case`` that bounds SafeTail's latency."""
+    floor = "floor: no policy beats Oracle (or the fallback)"
+    out = [Bound(p, floor, world.floor_s[p], math.inf, "floor", floor) for p in PERCENTILES]
+    for ratio in PAPER_RATIOS:
+        if ratio.use_case != world.use_case or SAFETAIL not in (ratio.method, ratio.reference):
+            continue
+        other = ratio.reference if ratio.method == SAFETAIL else ratio.method
+        latency = _latency(world.summary, other, ratio.percentile)
+        if math.isnan(latency):
+            continue
+        low_r, high_r = ratio.speedup * (1 - TOLERANCE), ratio.speedup * (1 + TOLERANCE)
+        if ratio.method == SAFETAIL:  # speed-up = latency(other) / S
+            interval = (latency / high_r, latency / low_r)
+        else:  # speed-up of other over SafeTail = S / latency(other)
+            interval = (latency * low_r, latency * high_r)
+        name = f"{ratio.method} over {ratio.reference} {PERCENTILE_NAMES[ratio.percentile]}"
+        text = f"{name} = {ratio.speedup:g} ±{TOLERANCE:.0%}"
+        out.append(Bound(ratio.percentile, text, *interval, "ratio", text))
+    for claim in PAPER_CLAIMS:
+        if claim.use_case != world.use_case or claim.key not in LATENCY_CLAIMS:
+            continue
+        percentiles, side, which, label = LATENCY_CLAIMS[claim.key]
+        for p in percentiles:
+            value, source = _claim_reference(world.summary, which, p)
+            if math.isnan(value):
+                continue
+            text = label.format(reference=source)
+            low, high = (-math.inf, value) if side == "high" else (value, math.inf)
+            out.append(Bound(p, text, low, high, "claim", claim.key, strict=True))
+    return out
+
+
+def _meet(bounds_: Sequence[Bound]) -> bool:
+    low = max(b.low_s for b in bounds_)
+    high = min(b.high_s for b in bounds_)
+    if low != high:
+        return low < high
+    # One point left: it must belong to every bound that ends there.
+    return not any(b.strict for b in bounds_ if low in (b.low_s, b.high_s))
+
+
+def fewest_to_give_up(bounds_: Sequence[Bound]) -> tuple[Bound, ...]:
+    """The smallest set of statements whose removal lets the others meet (the floor is a fact
+    of the world and is never given up); among equally small sets, the first in the order of
+    ``bounds_``. Empty when they meet already."""
+    floor, statements = bounds_[0], list(bounds_[1:])
+    for size in range(len(statements) + 1):
+        for dropped in itertools.combinations(range(len(statements)), size):
+            kept = [floor] + [b for i, b in enumerate(statements) if i not in dropped]
+            if _meet(kept):
+                return tuple(statements[i] for i in dropped)
+    raise AssertionError("the floor alone always meets")  # pragma: no cover
+
+
+def check(world: WorldRun) -> pd.DataFrame:
+    """Per percentile: the intersection of every bound, whether it is empty, which two
+    statements set its ends, and the fewest statements to give up for the rest to meet
+    (columns ``FEASIBILITY_COLUMNS``)."""
+    rows = []
+    every = bounds(world)
+    for p in PERCENTILES:
+        mine = [b for b in every if b.percentile == p]  # the floor first
+        lowest = max(mine, key=lambda b: b.low_s)
+        highest = min(mine, key=lambda b: b.high_s)
+        rows.append({
+            "use_case": world.use_case, "seed": world.seed, "percentile": p,
+            "floor_s": world.floor_s[p], "low_s": lowest.low_s, "high_s": highest.high_s,
+            "feasible": _meet(mine),
+            "low_statement": lowest.statement, "high_statement": highest.statement,
+            "n_statements": len(mine) - 1,
+            "give_up": GIVE_UP_SEPARATOR.join(b.statement for b in fewest_to_give_up(mine)),
+        })
+    return pd.DataFrame(rows, columns=list(FEASIBILITY_COLUMNS))
+
+
+def ratio_ceiling(world: WorldRun) -> tuple[int, int]:
+    """(the most of the use case's published ratios any policy could hold together within
+    ±20% in this world, how many there are): per percentile, the ratios less the fewest of them
+    to give up for the rest to meet the floor; claims left out."""
+    every = bounds(world)
+    most = total = 0
+    for p in PERCENTILES:
+        mine = [b for b in every if b.percentile == p and b.kind != "claim"]  # the floor first
+        total += len(mine) - 1
+        most += len(mine) - 1 - len(fewest_to_give_up(mine))
+    return most, total
+
+
+def claims_reachable(world: WorldRun) -> dict[str, bool | None]:
+    """Each of the use case's claims on its own: could any policy make it hold in this world?
+
+    A claim about SafeTail's latency is reachable when, at each of its percentiles, its bound
+    meets the floor. "Even Oracle's p99 exceeds the average target" is a fact of the world
+    (reachable when it holds). The claims about how many servers SafeTail uses bound nothing
+    here: None.
+    """
+    every = bounds(world)
+    floors = {b.percentile: b for b in every if b.kind == "floor"}
+    out: dict[str, bool | None] = {}
+    for claim in PAPER_CLAIMS:
+        if claim.use_case != world.use_case:
+            continue
+        if claim.key == "oracle_tail_above_target":
+            target, _ = _claim_reference(world.summary, "target", 99)
+            oracle = _latency(world.summary, ORACLE, 99)
+            out[claim.key] = None if math.isnan(oracle) else bool(oracle > target)
+        elif claim.key in LATENCY_CLAIMS:
+            mine = [b for b in every if b.key == claim.key]
+            # No bound (e.g. no x = 2, 3 baseline in the run): nothing to check, as check_claims.
+            out[claim.key] = all(_meet([floors[b.percentile], b]) for b in mine) if mine else None
+        else:
+            out[claim.key] = None
+    return out
+
+
+def check_all(worlds: Sequence[WorldRun]) -> pd.DataFrame:
+    """:func:`check` for every run, one frame (the rows of ``feasibility.csv``)."""
+    if not worlds:
+        return pd.DataFrame(columns=list(FEASIBILITY_COLUMNS))
+    return pd.concat([check(w) for w in worlds], ignore_index=True)
+
+
+def by_percentile(checked: pd.DataFrame) -> pd.DataFrame:
+    """Per use case and percentile: in how many seeds some latency satisfies every statement
+    (reachable when in most), and the two statements that set the interval's ends most often
+    among the seeds that agree with that verdict (``pair_seeds`` of them; where it is not
+    reachable, the two that contradict each other), with the median of those seeds' ends; and
+    the set of statements to give up (fewest) that most seeds share (``give_up_seeds`` of
+    them; empty: none)."""
+    rows = []
+    for (use_case, percentile), part in checked.groupby(["use_case", "percentile"], sort=True):
+        reachable = int(part["feasible"].sum())
+        in_most = reachable * 2 > len(part)
+        # The ends that decide: the most common pair among the seeds that agree with the verdict.
+        deciding = part[part["feasible"] == in_most]
+        pairs = list(zip(deciding["low_statement"], deciding["high_statement"]))
+        pair = Counter(pairs).most_common(1)[0][0]
+        with_pair = deciding[[p == pair for p in pairs]]
+        give_up, give_up_seeds = Counter(part["give_up"]).most_common(1)[0]
+        rows.append({
+            "use_case": int(use_case), "percentile": int(percentile),
+            "reachable_seeds": reachable, "n_seeds": len(part), "reachable": in_most,
+            "n_statements": int(part["n_statements"].max()),
+            "give_up": give_up, "give_up_seeds": give_up_seeds,
+            "pair_seeds": len(with_pair),
+            "low_s": float(with_pair["low_s"].median()),
+            "high_s": float(with_pair["high_s"].median()),
+            "low_statement": pair[0], "high_statement": pair[1],
+        })
+    return pd.DataFrame(rows)
+
+
+def reachable_count(checked: pd.DataFrame) -> tuple[int, int]:
+    """(percentiles reachable in most seeds, percentiles checked) over every use case."""
+    table = by_percentile(checked)
+    return int(table["reachable"].sum()), len(table)
+
+
+@dataclass(frozen=True, slots=True)
+class Ceiling:
+    """What no policy can exceed in these worlds (the runs of one preset, several use cases).
+
+    Attributes:
+        ratios_low, ratios_high: the most published ratios any policy could hold together within
+            ±20%, summed over use cases per seed: the smallest and largest over seeds.
+        ratios_total: how many published ratios the use cases have.
+        claims: claims reachable on their own in most seeds (those that bound nothing here
+            count as reachable), out of ``claims_total``.
+        unreachable: ``"uc<N> <key>"`` of every claim no policy can make hold in most seeds.
+    """
+
+    ratios_low: int
+    ratios_high: int
+    ratios_total: int
+    claims: int
+    claims_total: int
+    unreachable: tuple[str, ...]
+
+
+def ceiling(worlds: Sequence[WorldRun]) -> Ceiling:
+    """:class:`Ceiling` of runs that share their seeds across use cases."""
+    if not worlds:
+        raise ValueError("no runs to bound")
+    per_seed: dict[int, int] = {}
+    totals: dict[int, int] = {}
+    verdicts: dict[tuple[int, str], list[bool]] = {}
+    for world in worlds:
+        most, total = ratio_ceiling(world)
+        per_seed[world.seed] = per_seed.get(world.seed, 0) + most
+        totals[world.use_case] = total
+        for key, reachable in claims_reachable(world).items():
+            verdicts.setdefault((world.use_case, key), []).append(reachable is not False)
+    unreachable = tuple(f"uc{uc} {key}" for (uc, key), seen in verdicts.items()
+                        if sum(seen) * 2 <= len(seen))
+    return Ceiling(min(per_seed.values()), max(per_seed.values()), sum(totals.values()),
+                   len(verdicts) - len(unreachable), len(verdicts), unreachable)
+
+
+def ceiling_line(worlds: Sequence[WorldRun]) -> str:
+    """One line: the most any policy could reproduce in these worlds."""
+    top = ceiling(worlds)
+    ratios = (f"{top.ratios_low}" if top.ratios_low == top.ratios_high
+              else f"{top.ratios_low}–{top.ratios_high}")
+    missing = "" if not top.unreachable else f" (out of reach: {', '.join(top.unreachable)})"
+    return (f"Whatever the policy, in these worlds: at most {ratios} of the {top.ratios_total} "
+            f"published ratios within ±{TOLERANCE:.0%} together (per seed), and at most "
+            f"{top.claims} of the {top.claims_total} claims{missing}.")
+
+
+def _seconds(value: float) -> str:
+    return "—" if math.isinf(value) else f"{value:.3f}"
+
+
+FEASIBILITY_NOTE = (
+    "Could any policy hold the paper's statements about one percentile together in this world? "
+    "Each statement is an interval on SafeTail's latency at that percentile: the floor (no "
+    "policy beats Oracle, or the on-device fallback), each published ratio within ±20%, and the "
+    "claims about SafeTail's latency. Only Oracle's and the baselines' latencies and the targets "
+    "are read, never SafeTail's. Reachable: the intervals meet in most seeds. The two statements "
+    "are those that set the lower and upper end most often (where it is not reachable: the two "
+    "that contradict each other), the ends the median over those seeds. Fewest to give up: the "
+    "smallest set of statements without which the rest meet, as most seeds have it. A necessary "
+    "condition only: the claims about how many servers SafeTail uses bound no latency and are left out."
+)
+
+
+def feasibility_markdown(checked: pd.DataFrame) -> str:
+    """REPORT.md's table: one row per use case and percentile."""
+    table = by_percentile(checked)
+    display = pd.DataFrame(
+        [[str(r.use_case), PERCENTILE_NAMES[r.percentile], str(r.n_statements),
+          f"{r.reachable_seeds} of {r.n_seeds}", _seconds(r.low_s), r.low_statement,
+          _seconds(r.high_s), r.high_statement,
+          (r.give_up.replace(GIVE_UP_SEPARATOR, "; ") if r.give_up else "nothing")
+          + f" ({r.give_up_seeds} of {r.n_seeds})"]
+         for r in table.itertuples(index=False)],
+        dtype=object,
+        columns=["use case", "percentile", "statements", "reachable in seeds", "lower end (s)",
+                 "set by", "upper end (s)", "set by", "fewest to give up (in seeds)"])
+    count = reachable_count(checked)
+    lines = [f"Percentiles at which the paper's statements can hold together: {count[0]} of "
+             f"{count[1]}.", "", FEASIBILITY_NOTE, "", *frame_markdown(display)]
+    return "\n".join(lines) + "\n"
