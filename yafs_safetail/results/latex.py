@@ -21,13 +21,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.results.fidelity import (
     SCORECARD_ACCESS_NOTE,
     SCORECARD_RATIO_NOTE,
     TOLERANCE,
     scorecard_tables,
 )
+from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.results.report import (
     AGGREGATE_NOTE,
     COMPARISON_NOTE,
