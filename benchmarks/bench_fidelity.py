@@ -63,7 +63,9 @@ def main() -> None:
                             *options])
         card = pd.read_csv(out / fidelity.FIDELITY_FILE)
         card = card[card["preset"] == args.preset]
-        worlds = [feasibility.read_world_run(folder) for folder in sorted(out.glob(f"uc*-{args.preset}/seed*"))]
+        worlds = [feasibility.read_world_run(out / reproduce_all.RUN_FOLDER.format(
+                      use_case=use_case, preset=args.preset, seed=int(seed)))
+                  for use_case in (1, 2, 3) for seed in args.seeds.split(",")]
         # The UC1 default run, timed alone (reproduce_all's runs share the machine's cores).
         started = time.perf_counter()
         run_experiment(ExperimentConfig(use_case=1, preset=args.preset, seed=0,

@@ -125,7 +125,7 @@ def test_latex_tables_and_band_figures_beside_the_report(uncut: Path) -> None:
     out = uncut
     report = (out / "REPORT.md").read_text()
     names = ["fidelity-paper-ratios", "fidelity-paper-claims", "fidelity-paper-access-rate",
-             "latency-uc1-paper", "ratios-uc1-paper", "learner-uc1-paper"]
+             "feasibility-paper", "latency-uc1-paper", "ratios-uc1-paper", "learner-uc1-paper"]
     assert sorted(p.name for p in (out / "tables").iterdir()) == sorted(f"{n}.tex" for n in names)
     listed = report[report.index("## LaTeX tables"):]
     assert [line for line in listed.splitlines() if line.startswith("- ")] == [
@@ -141,6 +141,9 @@ def test_latex_tables_and_band_figures_beside_the_report(uncut: Path) -> None:
     assert rows[0][5] in report
     _, claims = parse_table((out / "tables" / "fidelity-paper-claims.tex").read_text())
     assert len(claims) == 3
+    header, rows = parse_table((out / "tables" / "feasibility-paper.tex").read_text())
+    assert header[:4] == ["use case", "percentile", "statements", "reachable in seeds"]
+    assert [row[1] for row in rows] == ["median", "p90", "p95", "p99"]
     # Band figures across seeds, even with --no-figures (that skips the per-run panels only).
     for stem in ("uc1-paper-latency-bands", "uc1-paper-servers-bands"):
         for suffix in (".png", ".pdf"):
@@ -164,3 +167,16 @@ def test_a_run_without_its_fallback_latency_is_one_line_naming_the_file(uncut: P
     (broken / "run.json").write_text(json.dumps(run))
     with pytest.raises(ValueError, match=r"seed0/run.json: key fallback_latency_s: expected a number"):
         feasibility.read_world_run(broken)
+
+
+def test_the_check_on_any_run_folders_from_the_command_line(uncut: Path, tmp_path: Path) -> None:
+    command = [sys.executable, "-m", "yafs_safetail.results.feasibility"]
+    folders = [str(uncut / "uc1-paper" / f"seed{seed}") for seed in (0, 1)]
+    done = subprocess.run([*command, *folders], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith("Whatever the policy, in these worlds: at most ")
+    assert "| 1 | p99 | " in done.stdout and "of 2 |" in done.stdout
+    missing = subprocess.run([*command, str(tmp_path / "nowhere")], capture_output=True, text=True,
+                             timeout=300)
+    assert missing.returncode == 2 and missing.stdout == ""
+    assert missing.stderr.strip().splitlines() == [f"error: {tmp_path / 'nowhere'}: results folder not found"]

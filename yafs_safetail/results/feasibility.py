@@ -45,8 +45,14 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, baselines_of, parse_method
-from yafs_safetail.results.files import PERCENTILES, read_requests_csv, read_run_json, read_summary_csv
 from yafs_safetail.results.fidelity import TOLERANCE
+from yafs_safetail.results.files import (
+    PERCENTILES,
+    ResultsFileError,
+    read_requests_csv,
+    read_run_json,
+    read_summary_csv,
+)
 from yafs_safetail.results.paper import PAPER_CLAIMS, PAPER_RATIOS, PERCENTILE_NAMES
 from yafs_safetail.results.report import frame_markdown
 
@@ -134,6 +140,8 @@ def read_world_run(folder: str | Path) -> WorldRun:
         ValueError: the run has no Oracle test rows, or ``run.json`` no fallback latency.
     """
     folder = Path(folder)
+    if not folder.is_dir():
+        raise ResultsFileError(f"{folder}: results folder not found")
     run = read_run_json(folder)
     fallback = run.extra.get("fallback_latency_s")
     if not isinstance(fallback, (int, float)) or isinstance(fallback, bool):
@@ -305,7 +313,7 @@ def by_percentile(checked: pd.DataFrame) -> pd.DataFrame:
         in_most = reachable * 2 > len(part)
         # The ends that decide: the most common pair among the seeds that agree with the verdict.
         deciding = part[part["feasible"] == in_most]
-        pairs = list(zip(deciding["low_statement"], deciding["high_statement"]))
+        pairs = list(zip(deciding["low_statement"], deciding["high_statement"], strict=True))
         pair = Counter(pairs).most_common(1)[0][0]
         with_pair = deciding[[p == pair for p in pairs]]
         give_up, give_up_seeds = Counter(part["give_up"]).most_common(1)[0]
@@ -396,10 +404,11 @@ FEASIBILITY_NOTE = (
 )
 
 
-def feasibility_markdown(checked: pd.DataFrame) -> str:
-    """REPORT.md's table: one row per use case and percentile."""
+def feasibility_display(checked: pd.DataFrame) -> pd.DataFrame:
+    """The report's table as display strings, one row per use case and percentile (the
+    markdown and the LaTeX table are both made from it)."""
     table = by_percentile(checked)
-    display = pd.DataFrame(
+    return pd.DataFrame(
         [[str(r.use_case), PERCENTILE_NAMES[r.percentile], str(r.n_statements),
           f"{r.reachable_seeds} of {r.n_seeds}", _seconds(r.low_s), r.low_statement,
           _seconds(r.high_s), r.high_statement,
@@ -409,7 +418,40 @@ def feasibility_markdown(checked: pd.DataFrame) -> str:
         dtype=object,
         columns=["use case", "percentile", "statements", "reachable in seeds", "lower end (s)",
                  "set by", "upper end (s)", "set by", "fewest to give up (in seeds)"])
+
+
+def feasibility_markdown(checked: pd.DataFrame) -> str:
+    """REPORT.md's part: the count, the note, the table."""
     count = reachable_count(checked)
     lines = [f"Percentiles at which the paper's statements can hold together: {count[0]} of "
-             f"{count[1]}.", "", FEASIBILITY_NOTE, "", *frame_markdown(display)]
+             f"{count[1]}.", "", FEASIBILITY_NOTE, "", *frame_markdown(feasibility_display(checked))]
     return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m yafs_safetail.results.feasibility DIR [DIR ...]``: print the check."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="python -m yafs_safetail.results.feasibility",
+        description="What any policy could reach in the worlds of these run folders (from "
+                    "run_usecase.py or reproduce_all.py; one or more use cases, the same seeds "
+                    "for each): which of the paper's statements can hold together at each "
+                    "percentile, read from Oracle's and the baselines' latencies and the "
+                    "targets alone.",
+    )
+    parser.add_argument("directories", metavar="DIR", nargs="+", help="results folders of runs")
+    args = parser.parse_args(argv)
+    worlds = [read_world_run(folder) for folder in args.directories]
+    print(ceiling_line(worlds))
+    print()
+    print(feasibility_markdown(check_all(worlds)), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    from yafs_safetail.cli import run_cli
+
+    sys.exit(run_cli(main))
