@@ -19,7 +19,7 @@ line each, and the verdict:
 Usage::
 
     python benchmarks/bench_fidelity.py [--preset paper] [--seeds 0,1,2,3,4] [--out DIR]
-        [--steps-scale 1] [--target-compute request|trace_median]
+        [--steps-scale 1] [--target-compute request|trace_median] [--learning-rate RATE]
 
 About 15 minutes on 2 cores at the full budget. The run folders, REPORT.md and fidelity.csv stay
 in ``--out`` (default: a temporary folder, removed at the end).
@@ -53,11 +53,16 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--target-compute", default=None,
                         help="C(s_j) of Eq. 4 for the reproduction (default: the preset world's)")
+    parser.add_argument("--learning-rate", default=None,
+                        help="SafeTail's learning rate instead of the preset's (what the preset's "
+                             "network reaches when it can move further; not the preset's result)")
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory(prefix="bench_fidelity_") as scratch:
         out = args.out or Path(scratch) / "reproduce"
         options = [] if args.target_compute is None else ["--target-compute", args.target_compute]
+        if args.learning_rate is not None:
+            options += ["--learning-rate", args.learning_rate]
         reproduce_all.main(["--uc", "1,2,3", "--preset", args.preset, "--seeds", args.seeds,
                             "--steps-scale", args.steps_scale, "--no-figures", "--out", str(out),
                             *options])
@@ -68,9 +73,10 @@ def main() -> None:
                   for use_case in (1, 2, 3) for seed in args.seeds.split(",")]
         # The UC1 default run, timed alone (reproduce_all's runs share the machine's cores).
         started = time.perf_counter()
-        run_experiment(ExperimentConfig(use_case=1, preset=args.preset, seed=0,
-                                        out_dir=Path(scratch) / "uc1", progress=False,
-                                        steps_scale=float(args.steps_scale)))
+        run_experiment(ExperimentConfig(
+            use_case=1, preset=args.preset, seed=0, out_dir=Path(scratch) / "uc1", progress=False,
+            steps_scale=float(args.steps_scale),
+            learning_rate=None if args.learning_rate is None else float(args.learning_rate)))
         uc1_s = time.perf_counter() - started
 
     counts = fidelity.counts(card)

@@ -68,8 +68,9 @@ def _parser() -> ArgumentParser:
                              "verbatim; tuned = ours; docs/deviations.md)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="the run's seed (default 0)")
     parser.add_argument("--out", type=Path, default=None,
-                        help="results folder (default results/uc<N>-<preset>-s<seed>, plus "
-                             "-x<scale> with --steps-scale); never replaced unless --overwrite")
+                        help="results folder (default results/uc<N>-<preset>-s<seed>, with "
+                             "-lr<rate> after the preset with --learning-rate and -x<scale> at "
+                             "the end with --steps-scale); never replaced unless --overwrite")
     parser.add_argument("--force", action="store_true",
                         help="run a budget beyond the limits (10 GB of results or 4 GB of memory)")
     parser.add_argument("--overwrite", action="store_true",
@@ -108,6 +109,10 @@ def _parser() -> ArgumentParser:
                              "request's own input, or 'trace_median', the compute trace's median "
                              "at ν for every request (default: the preset world's; "
                              "docs/deviations.md D11)")
+    parser.add_argument("--learning-rate", type=positive_float, default=None,
+                        help="Adam's learning rate for SafeTail instead of the preset's (e.g. "
+                             "the paper preset's network with tuned's 1e-3); the run is then no "
+                             "longer the preset's, and run.json and summary.md say so")
     parser.add_argument("--workers", type=positive_int, default=2,
                         help="processes: the baselines are tested in workers-1 other processes "
                              "while SafeTail trains (default 2; 1 = one process; same results)")
@@ -131,7 +136,8 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
     if placement is None:
         placement = default_placement(args.topology)
     scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
-    out = args.out or Path("results") / f"uc{args.uc}-{args.preset}-s{args.seed}{scale}"
+    rate = "" if args.learning_rate is None else f"-lr{args.learning_rate:g}"
+    out = args.out or Path("results") / f"uc{args.uc}-{args.preset}{rate}-s{args.seed}{scale}"
     command = shlex.join(["python", "experiments/run_usecase.py", *(sys.argv[1:] if argv is None else argv)])
     return ExperimentConfig(
         use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=out,
@@ -144,7 +150,7 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
         overwrite=args.overwrite, force=args.force, step_interval_s=args.step_interval_s,
         resume=args.resume, checkpoint_every_s=args.checkpoint_every_s,
         target_latency_s=args.target_latency_s, load_peak_users=args.load_peak_users,
-        target_compute=args.target_compute,
+        target_compute=args.target_compute, learning_rate=args.learning_rate,
     )
 
 

@@ -40,6 +40,7 @@ def test_run_id_follows_what_the_results_depend_on(tmp_path: Path) -> None:
     base = one()
     assert one(topology=str(TOPOLOGY)) == base  # the default, spelt out
     assert one(steps_scale=0.02) != base and one(redundancy_levels=[1, 2]) != base
+    assert one(learning_rate=1e-3) != base and one(learning_rate=1e-3) != one(learning_rate=1e-4)
     edited = tmp_path / "topology.json"
     shutil.copy(TOPOLOGY, edited)
     same_place = one(topology=str(edited))

@@ -79,20 +79,24 @@ def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
 
 
 def test_unknown_use_case_and_preset_and_repeated_seeds_are_one_line_errors(tmp_path: Path) -> None:
-    for args in (("--uc", "4"), ("--preset", "fast"), ("--seeds", "0,1,0"), ("--target-compute", "mean")):
+    for args in (("--uc", "4"), ("--preset", "fast"), ("--seeds", "0,1,0"), ("--target-compute", "mean"),
+                 ("--learning-rate", "0")):
         done = _run(*args, "--out", str(tmp_path / "x"))
         assert done.returncode == 2
         assert done.stderr.startswith("error:") and done.stderr.count("\n") == 1
         assert "Traceback" not in done.stderr
 
 
-def test_target_compute_reaches_every_run(tmp_path: Path) -> None:
+def test_target_compute_and_learning_rate_reach_every_run(tmp_path: Path) -> None:
     out = tmp_path / "rep"
     done = _run("--uc", "3", "--seeds", "0", "--steps-scale", "0.013", "--no-figures",
-                "--target-compute", "trace_median", "--out", str(out))
+                "--target-compute", "trace_median", "--learning-rate", "0.001", "--out", str(out))
     assert done.returncode == 0, done.stderr[-2000:]
-    world = json.loads((out / "uc3-paper" / "seed0" / "run.json").read_text())["world"]
-    assert world["name"] == "calibrated" and world["target_compute"] == "trace_median"
+    run = json.loads((out / "uc3-paper" / "seed0" / "run.json").read_text())
+    assert run["world"]["name"] == "calibrated" and run["world"]["target_compute"] == "trace_median"
+    assert run["learner"]["learning_rate"] == 0.001 and run["learning_rate_override"] == 0.001
+    # The report says its runs are not the preset's own.
+    assert "learning rate 0.001 (`--learning-rate`) instead of its preset's" in (out / "REPORT.md").read_text()
 
 
 def test_a_killed_reproduction_resumes_to_the_same_files_without_recomputing(uncut: Path, tmp_path: Path) -> None:

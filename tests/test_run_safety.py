@@ -189,6 +189,9 @@ def test_the_default_folder_names_preset_seed_and_scale():
     assert module.parse_args(["--uc", "2", "--seed", "3"]).out_dir == Path("results/uc2-paper-s3")
     quick = module.parse_args(["--uc", "1", "--preset", "tuned", "--steps-scale", "0.1"])
     assert quick.out_dir == Path("results/uc1-tuned-s0-x0.1")
+    faster = module.parse_args(["--uc", "1", "--learning-rate", "1e-3", "--steps-scale", "0.1"])
+    assert faster.out_dir == Path("results/uc1-paper-lr0.001-s0-x0.1")
+    assert faster.learning_rate == 1e-3
 
 
 @pytest.mark.parametrize(("args", "fragments"), [

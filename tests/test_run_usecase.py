@@ -338,7 +338,40 @@ def tmp_path_run_default(tmp_path: Path) -> Path:
     return out
 
 
+def test_learning_rate_option_trains_safetail_at_that_rate_and_says_so(tmp_path):
+    out = tmp_path / "faster"
+    done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
+                      "--learning-rate", "0.001")
+    assert done.returncode == 0, done.stderr
+    run = json.loads((out / "run.json").read_text())
+    assert run["learning_rate_override"] == 0.001 and run["learner"]["learning_rate"] == 0.001
+    assert run["preset"] == "paper"
+    title = (out / "summary.md").read_text().splitlines()[0]
+    assert "preset `paper`, learning rate 0.001 (--learning-rate), seed 0" in title
+    default = tmp_path_run_default(tmp_path)
+    preset_run = json.loads((default / "run.json").read_text())
+    assert "learning_rate_override" not in preset_run
+    assert preset_run["learner"]["learning_rate"] != 0.001
+    assert "learning rate" not in (default / "summary.md").read_text().splitlines()[0]
+    # Only SafeTail's training changes: the baselines meet the same requests with the same replies.
+    faster, preset = pd.read_csv(out / "requests.csv"), pd.read_csv(default / "requests.csv")
+    baselines = faster["method"] != "SafeTail"
+    pd.testing.assert_frame_equal(faster[baselines].reset_index(drop=True),
+                                  preset[preset["method"] != "SafeTail"].reset_index(drop=True))
+    assert (out / POLICY_FILE).read_bytes() != (default / POLICY_FILE).read_bytes()
+
+
+def test_learning_rate_with_a_saved_policy_is_refused(uc1_run, tmp_path):
+    done = run_script("--uc", "1", "--policy", uc1_run / POLICY_FILE, "--learning-rate", "0.001",
+                      "--out", tmp_path / "run")
+    assert_one_error_line(done, "--learning-rate", "--policy")
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.parametrize("args, fragment", [
+    (["--learning-rate", "0"], "--learning-rate"),
+    (["--learning-rate", "nan"], "--learning-rate"),
+    (["--learning-rate", "fast"], "--learning-rate"),
     (["--target-latency-s", "0"], "--target-latency-s"),
     (["--target-latency-s", "nan"], "--target-latency-s"),
     (["--load-peak-users", "-1"], "--load-peak-users"),
@@ -355,4 +388,7 @@ def test_an_out_of_range_setting_in_a_config_is_one_line(tmp_path):
 
     with pytest.raises(ExperimentError, match="--target-latency-s"):
         run_experiment(ExperimentConfig(out_dir=tmp_path / "run", target_latency_s=float("inf")))
+    for rate in (float("inf"), -1e-3, True):
+        with pytest.raises(ExperimentError, match="--learning-rate"):
+            run_experiment(ExperimentConfig(out_dir=tmp_path / "run", learning_rate=rate))  # type: ignore[arg-type]
     assert not (tmp_path / "run").exists()

@@ -24,6 +24,7 @@ from yafs_safetail.methods.registry import (
 from yafs_safetail.record import PHASES, REQUESTS_COLUMNS, REQUESTS_SCHEMA
 from yafs_safetail.results.files import (
     FLOAT_FORMAT,
+    LEARNING_RATE_OVERRIDE_KEY,
     NA_REP,
     OPTIONAL_SUMMARY_COLUMNS,
     PERCENTILES,
@@ -113,6 +114,7 @@ __all__ = [
     "REQUESTS_SCHEMA",
     "RUN_FILE",
     "RUN_JSON_KEYS",
+    "LEARNING_RATE_OVERRIDE_KEY",
     "ResultsFileError",
     "RunMetadata",
     "SAFETAIL",

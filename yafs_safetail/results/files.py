@@ -232,6 +232,10 @@ def _check_requests_values(frame: pd.DataFrame, file: Path) -> None:
 # --------------------------------------------------------------------------------------------
 # run.json
 
+#: ``run.json`` key of a run whose learning rate was set instead of the preset's
+#: (``--learning-rate``); absent when the preset's own rate was used.
+LEARNING_RATE_OVERRIDE_KEY = "learning_rate_override"
+
 
 @dataclass(slots=True)
 class RunMetadata:
@@ -266,6 +270,13 @@ class RunMetadata:
     package_version: str
     command: str
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def learning_rate_note(self) -> str:
+        """What to write after the preset's name: empty, or ``, learning rate 0.001
+        (--learning-rate)`` for a run whose learning rate was not the preset's."""
+        rate = self.extra.get(LEARNING_RATE_OVERRIDE_KEY)
+        return "" if rate is None else f", learning rate {rate:g} (--learning-rate)"
 
     def to_json(self) -> str:
         """Deterministic JSON text (sorted keys, two-space indent, trailing newline)."""

@@ -80,7 +80,7 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     use_case = run.use_case if run else None
     if run:
         title = (f"# SafeTail results: use case {run.use_case} ({run.use_case_name}), "
-                 f"preset `{run.preset}`, seed {run.seed}")
+                 f"preset `{run.preset}`{run.learning_rate_note}, seed {run.seed}")
     else:
         title = "# SafeTail results (no run.json: use case, preset and seed unknown)"
     lines = [title, ""]

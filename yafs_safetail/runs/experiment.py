@@ -132,6 +132,10 @@ class ExperimentConfig:
             (``runs.checkpoint``; ``--resume``); the results are those of an uninterrupted run.
         checkpoint_every_s: wall time between two training checkpoints (one is also written
             when training ends); 0: at every chance. None: no checkpoints.
+        learning_rate: Adam's learning rate for SafeTail's training instead of the preset's
+            (``--learning-rate``); None: the preset's. Everything else stays the preset's; the
+            run is then no longer the preset's configuration, and ``run.json`` and
+            ``summary.md`` say so.
     """
 
     use_case: int = 1
@@ -160,6 +164,7 @@ class ExperimentConfig:
     run_id: str = ""
     resume: bool = False
     checkpoint_every_s: float | None = 60.0
+    learning_rate: float | None = None
 
 
 #: Training requests between two chances to checkpoint (and two progress-bar updates).
@@ -205,6 +210,14 @@ def _check(config: ExperimentConfig) -> _Inputs:
     base = get_preset(config.preset, use_case.number)
     learner_config = get_preset(config.preset, use_case.number,
                                 train_steps=scaled_steps(base.train_steps, config.steps_scale))
+    if config.learning_rate is not None:  # checked here too: campaign grids set it directly
+        if config.policy is not None:
+            raise ExperimentError("--learning-rate: nothing trains with --policy; give one or the other")
+        rate = config.learning_rate
+        if isinstance(rate, bool) or not isinstance(rate, float | int) or not (
+                math.isfinite(rate) and rate > 0):
+            raise ExperimentError(f"--learning-rate: expected a positive number, got {rate!r}")
+        learner_config = dataclasses.replace(learner_config, learning_rate=float(rate))
     if isinstance(config.workers, bool) or not isinstance(config.workers, int) or config.workers < 1:
         raise ExperimentError(f"--workers: expected a positive integer, got {config.workers!r}")
     if not config.redundancy_levels:
@@ -549,6 +562,9 @@ def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
             "training_rounds": learner.n_training_rounds,
             "final_epsilon": learner.epsilon,
             "policy_source": str(config.policy) if config.policy else POLICY_FILE,
+            # Only when set, so that a run with the preset's own rate is what it always was.
+            **({results.LEARNING_RATE_OVERRIDE_KEY: float(config.learning_rate)}
+               if config.learning_rate is not None else {}),
             **({"campaign_run_id": config.run_id} if config.run_id else {}),
         },
     )
