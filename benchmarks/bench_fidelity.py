@@ -39,6 +39,7 @@ sys.path.insert(0, str(REPOSITORY / "experiments"))
 import pandas as pd  # noqa: E402
 import reproduce_all  # noqa: E402
 
+from yafs_safetail.cli import positive_float  # noqa: E402
 from yafs_safetail.results import feasibility, fidelity  # noqa: E402
 from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment  # noqa: E402
 
@@ -53,7 +54,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--target-compute", default=None,
                         help="C(s_j) of Eq. 4 for the reproduction (default: the preset world's)")
-    parser.add_argument("--learning-rate", default=None,
+    parser.add_argument("--learning-rate", type=positive_float, default=None,
                         help="SafeTail's learning rate instead of the preset's (what the preset's "
                              "network reaches when it can move further; not the preset's result)")
     args = parser.parse_args()
@@ -62,7 +63,7 @@ def main() -> None:
         out = args.out or Path(scratch) / "reproduce"
         options = [] if args.target_compute is None else ["--target-compute", args.target_compute]
         if args.learning_rate is not None:
-            options += ["--learning-rate", args.learning_rate]
+            options += ["--learning-rate", repr(args.learning_rate)]
         reproduce_all.main(["--uc", "1,2,3", "--preset", args.preset, "--seeds", args.seeds,
                             "--steps-scale", args.steps_scale, "--no-figures", "--out", str(out),
                             *options])
@@ -75,8 +76,7 @@ def main() -> None:
         started = time.perf_counter()
         run_experiment(ExperimentConfig(
             use_case=1, preset=args.preset, seed=0, out_dir=Path(scratch) / "uc1", progress=False,
-            steps_scale=float(args.steps_scale),
-            learning_rate=None if args.learning_rate is None else float(args.learning_rate)))
+            steps_scale=float(args.steps_scale), learning_rate=args.learning_rate))
         uc1_s = time.perf_counter() - started
 
     counts = fidelity.counts(card)
