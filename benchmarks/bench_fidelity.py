@@ -64,9 +64,11 @@ def main() -> None:
         options = [] if args.target_compute is None else ["--target-compute", args.target_compute]
         if args.learning_rate is not None:
             options += ["--learning-rate", repr(args.learning_rate)]
-        reproduce_all.main(["--uc", "1,2,3", "--preset", args.preset, "--seeds", args.seeds,
-                            "--steps-scale", args.steps_scale, "--no-figures", "--out", str(out),
-                            *options])
+        failed = reproduce_all.main(["--uc", "1,2,3", "--preset", args.preset, "--seeds", args.seeds,
+                                     "--steps-scale", args.steps_scale, "--no-figures",
+                                     "--out", str(out), *options])
+        if failed:  # reproduce_all has said which runs failed and why, one line each
+            sys.exit(failed)
         card = pd.read_csv(out / fidelity.FIDELITY_FILE)
         card = card[card["preset"] == args.preset]
         worlds = [feasibility.read_world_run(out / reproduce_all.RUN_FOLDER.format(

@@ -95,3 +95,16 @@ def test_sweep_noise_benchmark_small_budget():
     assert worst == pytest.approx(max(abs(np.log(r)) for r in ratios), abs=1e-3)
     # Same tie-breaking rule up to the order of equals: the two can differ, but not by much.
     assert all(0.8 < r < 1.25 for r in ratios)
+
+
+def test_fidelity_benchmark_with_failed_runs_ends_without_a_traceback(tmp_path):
+    # Too few training requests for use case 2 (refused before TensorFlow): the reproduction
+    # fails, and the benchmark says so and stops instead of reading a report never written.
+    done = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "bench_fidelity.py"), "--seeds", "0",
+         "--steps-scale", "0.013", "--out", str(tmp_path / "fid")],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=900)
+    assert done.returncode == 1
+    assert "Traceback" not in done.stderr
+    assert "run(s) failed" in done.stderr and "fewer than κ = 128" in done.stderr
+    assert not (tmp_path / "fid" / "fidelity.csv").exists()
