@@ -1,37 +1,43 @@
-"""Fit the unpublished world parameters to the calibration subset of the paper's numbers.
+"""Fit the unpublished world parameters without the learner (docs/calibration.md, rule 1).
 
 The paper never published how its load trace maps to server load, how a server's bandwidth is
-shared, how long the on-device fallback takes, or ν (yafs_safetail.edge.calibration lists each
-parameter with its rule and range). This module fits them, one value per parameter for all three
-use cases, to the **calibration subset only**: use case 1's twelve ratios of SafeTail against the
-x = 1 baselines (``results.paper.CALIBRATION_RATIOS``). Every other published number is held out
-and reported separately by ``experiments/reproduce_all.py``.
+shared, or how long the on-device fallback takes (yafs_safetail.edge.calibration lists each
+parameter with its rule). This module fits them, one value each for all three use cases, to
+what the paper's use-case-1 numbers imply about the world alone: the latency of Rand-1, MinLoad-1
+and MinProp-1 over Oracle's at p50, p90, p95 and p99 (:func:`implied_over_oracle`). SafeTail is
+not in the objective, so the fit does not depend on how a network happened to train, and it
+needs no TensorFlow.
 
 The flow reads top to bottom in :func:`calibrate`:
 
-1. each candidate is the full default experiment (``run_experiment``: the preset trains SafeTail,
-   tests it and the baselines) on use case 1 for every calibration seed; the seeds are disjoint
-   from the report seeds;
-2. the objective is the mean over seeds and over the twelve ratios of |log(ours / paper)|
-   (symmetric in over- and under-shooting, scale-free);
-3. the search first scores every discrete choice (load start × ν) at the middle of the
-   continuous ranges, then refines the best ones by a coordinate search with shrinking steps;
-4. every evaluation goes to ``evaluations.csv``; the best one, with its provenance (subset,
-   seeds, objective, date, command, code version), to ``calibration.json``.
+1. every point of a fixed grid (:data:`GRID`) is a candidate world;
+2. for each calibration seed, UC1's test world is drawn with the candidate's settings and each
+   method's latency is read from the world's per-copy table (:func:`method_latencies_s`; with
+   one request a minute every copy has ended before the next request, so this equals the
+   simulation, which a test checks);
+3. the objective is the mean over seeds and the twelve cells of |log(ours / implied)|;
+4. the lowest objective wins, ties by grid order (a parameter the tied candidates differ in is
+   recorded as unidentified); every candidate goes to ``evaluations.csv``, the winner with its
+   provenance to ``calibration.json``.
+
+A grid rather than a search path: the same candidates are scored on any machine, so a rerun
+lands on the same parameters unless two candidates tie to the last digits (the provenance
+gives the margin to the runner-up).
 """
 
 from __future__ import annotations
 
 import concurrent.futures
 import datetime
+import functools
+import itertools
 import json
 import logging
 import math
 import multiprocessing
 import subprocess
-import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -48,22 +54,28 @@ from yafs_safetail.edge.calibration import (
     LOAD_STARTS,
     WorldSettings,
     calibrated_settings,
+    seed_set,
 )
-from yafs_safetail.results.paper import CALIBRATION_RATIOS, PaperRatio
+from yafs_safetail.edge.inputs import load_inputs, load_scenario_for
+from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
+from yafs_safetail.edge.usecases import get_use_case
+from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world
+from yafs_safetail.methods.registry import ORACLE, SAFETAIL, make_baseline
+from yafs_safetail.results.files import PERCENTILES
+from yafs_safetail.results.paper import PAPER_RATIOS, PaperRatio, paper_speedup
+from yafs_safetail.runs.workers import method_rng
 
-#: Seeds the calibration uses by default: disjoint from the report seeds (0..9).
-DEFAULT_SEEDS = (1000, 1001, 1002)
-#: The continuous parameters and the first step of the coordinate search.
-CONTINUOUS_STEPS = {"load_peak_users": 0.5, "bandwidth_share_exponent": 0.25,
-                    "fallback_compute_multiple": 4.0}
-#: Where the continuous parameters start for the discrete sweep (the middle of each range,
-#: in log scale for the fallback multiple).
-CONTINUOUS_START = {"load_peak_users": 4.5, "bandwidth_share_exponent": 0.5,
-                    "fallback_compute_multiple": 8.0}
-#: The values of ν the search tries. §III chooses ν "reflecting the fact that each edge server
-#: often handles multiple parallel instances", so ν = 1 (a server running the service alone) is
-#: not a reading of the paper (docs/deviations.md D8).
-NU_CHOICES = (2, 3, 4, 5)
+#: The single-server baselines whose latency over Oracle's the fit matches.
+X1_BASELINES = ("Rand-1", "MinLoad-1", "MinProp-1")
+#: The candidates: every combination, in this order (ties go to the earlier one).
+GRID: Mapping[str, tuple[Any, ...]] = {
+    "load_start": LOAD_STARTS,
+    "load_peak_users": tuple(2.5 + 0.25 * i for i in range(11)),        # 2.5 .. 5.0
+    "bandwidth_share_exponent": tuple(0.25 * i for i in range(9)),      # 0 .. 2
+    "fallback_compute_multiple": (4.0, 8.0, 16.0),
+}
+#: Use case 1's test phase: 20·β requests (paper §V).
+TEST_STEPS = 4000
 EVALUATIONS_FILE = "evaluations.csv"
 RESULT_FILE = "calibration.json"
 
@@ -72,162 +84,222 @@ class CalibrationRunError(ValueError):
     """A bad calibration setting (one line naming it)."""
 
 
+def implied_over_oracle() -> dict[tuple[str, int], float]:
+    """What the paper's use-case-1 numbers imply about the world alone: each x = 1 baseline's
+    latency over Oracle's at each percentile.
+
+    latency(b) / latency(Oracle) = [latency(b) / latency(SafeTail)] · [latency(SafeTail) /
+    latency(Oracle)], i.e. SafeTail's published speed-up over b divided by its published
+    speed-up over Oracle (facts.md's table; no learner involved once the numbers are published).
+    """
+    implied = {}
+    for baseline in X1_BASELINES:
+        for percentile in PERCENTILES:
+            over_baseline = paper_speedup(1, SAFETAIL, baseline, percentile)
+            over_oracle = paper_speedup(1, SAFETAIL, ORACLE, percentile)
+            assert over_baseline is not None and over_oracle is not None
+            implied[(baseline, percentile)] = over_baseline / over_oracle
+    return implied
+
+
+def consumed_numbers() -> tuple[PaperRatio, ...]:
+    """The published numbers the fit consumes (the calibration subset): UC1's ratios of
+    SafeTail against the x = 1 baselines and against Oracle."""
+    return tuple(r for r in PAPER_RATIOS if r.use_case == 1
+                 and {r.method, r.reference} & {*X1_BASELINES, ORACLE})
+
+
+def cell_key(method: str, percentile: int) -> str:
+    return f"{method}/Oracle/p{percentile}"
+
+
+def grid_candidates(grid: Mapping[str, Sequence[Any]] = GRID) -> list[dict[str, Any]]:
+    """Every point of ``grid``, in order."""
+    names = list(grid)
+    return [dict(zip(names, values, strict=True)) for values in itertools.product(*grid.values())]
+
+
+def settings_for(candidate: Mapping[str, Any]) -> WorldSettings:
+    """The world of a candidate: the fitted parameters, the readings, ν by the knee rule."""
+    readings = dict(CALIBRATED_READINGS, load_start=candidate["load_start"])
+    return calibrated_settings(candidate, readings)
+
+
+@dataclass(frozen=True)
+class SeedChoices:
+    """The world-independent draws of the baselines' own generators for one seed.
+
+    Rand-1's choices and MinLoad-1's tie-break numbers come from the methods' generators
+    (``method_rng``), which never read the world, so they are drawn once per seed and reused
+    for every candidate (common random numbers across candidates).
+    """
+
+    rand_server: np.ndarray
+    minload_tiebreak: np.ndarray
+
+
+def seed_choices(seed: int, n_servers: int, n_steps: int) -> SeedChoices:
+    """Draw what the real Rand-1 and MinLoad-1 draw, in the order they draw it."""
+    rand = make_baseline("Rand-1", n_servers, method_rng(seed, "Rand-1"))
+    servers = np.array([rand.choose(None)[0] for _ in range(n_steps)], dtype=np.int64)
+    # MinLoad-x draws one number per server per request (its tie break), before sorting.
+    tiebreak = method_rng(seed, "MinLoad-1").random((n_steps, n_servers))
+    return SeedChoices(servers, tiebreak)
+
+
+def method_latencies_s(world: EdgeWorld, choices: SeedChoices) -> dict[str, np.ndarray]:
+    """Oracle's and the x = 1 baselines' latency per request of ``world``.
+
+    Valid when every copy has ended before the next request (the default one request a minute):
+    then the active users a request meets are the background users, and a copy's latency is
+    ``world.copy_latency_table_s()``. A refused copy (``inf``) leaves the on-device fallback.
+    """
+    table = world.copy_latency_table_s()
+    fallback_s = world.fallback_latency_s
+    steps = np.arange(world.n_steps)
+
+    def single(servers: np.ndarray) -> np.ndarray:
+        latency = table[steps, servers]
+        return np.where(np.isfinite(latency), latency, fallback_s)
+
+    oracle = table.min(axis=1)
+    # MinLoad: fewest active users, ties to the smallest tie-break number (integer loads, draws
+    # in [0, 1): the sum orders exactly as the policy's lexsort does).
+    minload = np.argmin(world.background_users + choices.minload_tiebreak, axis=1)
+    # MinProp: the smallest median propagation, ties by index (a stable argmin).
+    minprop = int(np.argmin(world.median_propagation_s))
+    return {
+        ORACLE: np.where(np.isfinite(oracle), oracle, fallback_s),
+        "Rand-1": single(choices.rand_server),
+        "MinLoad-1": single(minload),
+        "MinProp-1": single(np.full(world.n_steps, minprop)),
+    }
+
+
+@dataclass
+class Evaluation:
+    """One candidate's score over the calibration seeds."""
+
+    parameters: dict[str, Any]
+    objective: float
+    within_20: float
+    ratios: dict[str, float] = field(default_factory=dict)
+    fallback_share: dict[str, float] = field(default_factory=dict)
+
+    def row(self) -> dict[str, Any]:
+        return {**self.parameters, "objective": self.objective, "within_20": self.within_20,
+                **{f"ratio {k}": v for k, v in self.ratios.items()},
+                **{f"fallback {k}": v for k, v in self.fallback_share.items()}}
+
+
+def objective(per_seed: Sequence[Mapping[str, float]]) -> tuple[float, float, dict[str, float]]:
+    """(mean |log(ours / implied)|, share within ±20%, mean ratio per cell) over seeds and the
+    twelve cells; ``per_seed`` maps :func:`cell_key` to our latency ratio over Oracle's."""
+    implied = implied_over_oracle()
+    errors, hits = [], []
+    for ratios in per_seed:
+        for (method, percentile), paper in implied.items():
+            ours = ratios[cell_key(method, percentile)]
+            errors.append(abs(math.log(ours / paper)) if ours > 0 else math.inf)
+            hits.append(abs(ours / paper - 1.0) <= 0.2)
+    means = {cell_key(m, p): float(np.mean([s[cell_key(m, p)] for s in per_seed])) for m, p in implied}
+    return float(np.mean(errors)), float(np.mean(hits)), means
+
+
+@functools.lru_cache(maxsize=4)
+def _scenario(topology: str, placement: str) -> tuple[Any, Any, Any]:
+    use_case = get_use_case(1)
+    inputs = load_inputs(use_case)
+    return use_case, inputs, load_scenario_for(inputs, Path(topology), Path(placement))
+
+
+@functools.lru_cache(maxsize=64)
+def _choices(seed: int, n_servers: int, n_steps: int) -> SeedChoices:
+    return seed_choices(seed, n_servers, n_steps)
+
+
+def score(candidate: Mapping[str, Any], seeds: Sequence[int], n_steps: int = TEST_STEPS,
+          topology: Path = DEFAULT_TOPOLOGY, placement: Path = DEFAULT_PLACEMENT) -> Evaluation:
+    """A candidate's objective over ``seeds`` (each seed's UC1 test world)."""
+    use_case, inputs, scenario = _scenario(str(topology), str(placement))
+    settings = settings_for(candidate)
+    per_seed, fallbacks = [], []
+    for seed in seeds:
+        world = build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
+                            episode_steps=DEFAULT_EPISODE_STEPS, settings=settings)
+        latencies = method_latencies_s(world, _choices(seed, world.n_servers, n_steps))
+        oracle = np.percentile(latencies[ORACLE], PERCENTILES)
+        per_seed.append({cell_key(m, p): float(q / o) for m in X1_BASELINES
+                         for p, q, o in zip(PERCENTILES, np.percentile(latencies[m], PERCENTILES),
+                                            oracle, strict=True)})
+        fallbacks.append({m: float(np.mean(latencies[m] == world.fallback_latency_s))
+                          for m in (ORACLE, *X1_BASELINES)})
+    value, within, means = objective(per_seed)
+    share = {m: float(np.mean([f[m] for f in fallbacks])) for m in (ORACLE, *X1_BASELINES)}
+    return Evaluation(dict(candidate), value, within, means, share)
+
+
 @dataclass(frozen=True)
 class CalibrationConfig:
     """What one calibration depends on.
 
     Attributes:
-        preset: the learner preset whose SafeTail enters the ratios (the default run's).
-        seeds: calibration seeds, distinct, disjoint from the seeds results are reported on.
-        steps_scale: fraction of the preset's step budget per run (1 = the paper's).
-        max_evaluations: candidates evaluated at most (each is one run per seed).
-        refine_best: discrete choices refined by the coordinate search.
-        nu_choices: the values of ν the discrete sweep tries (``--nu``; within 1..5).
-        workers: runs in parallel (separate processes).
+        seeds: world-calibration seeds (default: ``seed_sets.json``), distinct.
+        grid: the candidates' values per parameter (default :data:`GRID`).
+        workers: processes scoring candidates in parallel (the result does not depend on it).
         out_dir: where ``evaluations.csv`` and ``calibration.json`` go.
         apply: also install the result as the package's calibration file.
         command: the command line, recorded in the provenance.
     """
 
-    preset: str = "paper"
-    seeds: tuple[int, ...] = DEFAULT_SEEDS
-    steps_scale: float = 1.0
-    max_evaluations: int = 32
-    refine_best: int = 2
-    nu_choices: tuple[int, ...] = NU_CHOICES
+    seeds: tuple[int, ...] = field(default_factory=lambda: tuple(seed_set("world_calibration")))
+    grid: Mapping[str, tuple[Any, ...]] = field(default_factory=lambda: dict(GRID))
     workers: int = 2
     out_dir: Path = Path("results/calibration")
     apply: bool = False
     command: str = ""
 
 
-@dataclass
-class Evaluation:
-    """One candidate's score."""
+def read_grid(path: Path) -> dict[str, tuple[Any, ...]]:
+    """A grid from a JSON file mapping each parameter of :data:`GRID` to a list of values.
 
-    parameters: dict[str, Any]
-    objective: float
-    within_20: float
-    ratios: dict[str, float] = field(default_factory=dict)
-
-
-def ratio_key(ratio: PaperRatio) -> str:
-    return f"{ratio.method}/{ratio.reference}/p{ratio.percentile}"
-
-
-def subset_ratios(summary: pd.DataFrame) -> dict[str, float]:
-    """Our value of each calibration ratio in one run's summary."""
-    return {ratio_key(r): results.speedup(summary, r.method, r.reference, r.percentile)
-            for r in CALIBRATION_RATIOS}
-
-
-def objective(per_seed: Sequence[dict[str, float]]) -> tuple[float, float, dict[str, float]]:
-    """(mean |log(ours/paper)|, share within ±20%, mean ratio per key) over seeds and ratios."""
-    errors, hits = [], []
-    for ratios in per_seed:
-        for r in CALIBRATION_RATIOS:
-            ours = ratios[ratio_key(r)]
-            errors.append(abs(math.log(ours / r.speedup)) if ours > 0 else math.inf)
-            hits.append(abs(ours / r.speedup - 1.0) <= 0.2)
-    means = {ratio_key(r): float(np.mean([s[ratio_key(r)] for s in per_seed]))
-             for r in CALIBRATION_RATIOS}
-    return float(np.mean(errors)), float(np.mean(hits)), means
+    Raises:
+        CalibrationRunError: an unreadable file or a missing, unknown or empty parameter.
+    """
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise CalibrationRunError(f"{path}: not a readable JSON file ({error})") from None
+    if not isinstance(data, dict):
+        raise CalibrationRunError(f"{path}: expected a JSON object")
+    for name in GRID:
+        if not isinstance(data.get(name), list) or not data[name]:
+            raise CalibrationRunError(f"{path}: {name}: expected a non-empty list of values")
+    unknown = sorted(set(data) - set(GRID))
+    if unknown:
+        raise CalibrationRunError(f"{path}: {unknown[0]}: not a calibrated parameter; valid: {', '.join(GRID)}")
+    return {name: tuple(data[name]) for name in GRID}
 
 
-def _run_one(preset: str, settings: WorldSettings, seed: int, steps_scale: float) -> dict[str, float]:
-    """One default UC1 experiment in this process; its calibration ratios."""
-    import tensorflow as tf
-
-    from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
-
-    # Every run builds a new learner and so a new training-round function; TensorFlow warns
-    # about the retracing that follows, which is expected here.
-    tf.get_logger().setLevel("ERROR")
-
-    with tempfile.TemporaryDirectory(prefix="yafs-safetail-calibrate-") as scratch:
-        report = run_experiment(ExperimentConfig(
-            use_case=1, preset=preset, seed=seed, out_dir=Path(scratch) / "run",
-            steps_scale=steps_scale, write_yafs_csv=False, figures=False, progress=False,
-            workers=1, world=settings,
-        ))
-        return subset_ratios(report.summary)
-
-
-def _settings(parameters: dict[str, Any]) -> WorldSettings:
-    readings = dict(CALIBRATED_READINGS, load_start=parameters["load_start"])
-    return calibrated_settings(parameters, readings)
-
-
-def _clip(name: str, value: float) -> float:
-    low, high, _ = CALIBRATED_PARAMETERS[name]
-    return float(min(max(value, low), high))
-
-
-class _Evaluator:
-    """Scores candidates (cached), running each seed's experiment in a worker process."""
-
-    def __init__(self, config: CalibrationConfig, log: Callable[[str], None]) -> None:
-        self.config = config
-        self.log = log
-        self.history: list[Evaluation] = []
-        self._cache: dict[tuple[Any, ...], Evaluation] = {}
-        context = multiprocessing.get_context("spawn")
-        self._pool = concurrent.futures.ProcessPoolExecutor(config.workers, mp_context=context)
-
-    def close(self) -> None:
-        self._pool.shutdown(cancel_futures=True)
-
-    @staticmethod
-    def _key(parameters: dict[str, Any]) -> tuple[Any, ...]:
-        return tuple((k, round(v, 6) if isinstance(v, float) else v)
-                     for k, v in sorted(parameters.items()))
-
-    def budget_left(self) -> int:
-        return self.config.max_evaluations - len(self.history)
-
-    def score_many(self, candidates: Sequence[dict[str, Any]]) -> list[Evaluation]:
-        """Score candidates, all seeds of all of them in parallel; cached ones are free."""
-        todo: list[dict[str, Any]] = []
-        for parameters in candidates:
-            if self._key(parameters) not in self._cache and len(todo) < self.budget_left():
-                todo.append(parameters)
-        futures = {
-            (i, seed): self._pool.submit(_run_one, self.config.preset, _settings(p), seed,
-                                         self.config.steps_scale)
-            for i, p in enumerate(todo) for seed in self.config.seeds
-        }
-        for i, parameters in enumerate(todo):
-            per_seed = [futures[(i, seed)].result() for seed in self.config.seeds]
-            value, within, means = objective(per_seed)
-            evaluation = Evaluation(dict(parameters), value, within, means)
-            self._cache[self._key(parameters)] = evaluation
-            self.history.append(evaluation)
-            self.log(f"[{len(self.history):3d}] objective {value:.4f}, within ±20% {within:.0%}: "
-                     + ", ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
-                                 for k, v in parameters.items()))
-        return [self._cache[self._key(p)] for p in candidates if self._key(p) in self._cache]
-
-
-def _coordinate_search(evaluator: _Evaluator, start: Evaluation) -> Evaluation:
-    """Try ± a step on each continuous parameter; move to any improvement; halve the steps when
-    none improves; stop at the evaluation budget or when the steps are small."""
-    best = start
-    steps = dict(CONTINUOUS_STEPS)
-    while evaluator.budget_left() > 0 and steps["load_peak_users"] >= 0.125:
-        candidates = []
-        for name, step in steps.items():
-            for sign in (-1.0, 1.0):
-                moved = dict(best.parameters)
-                moved[name] = _clip(name, best.parameters[name] + sign * step)
-                if moved[name] != best.parameters[name]:
-                    candidates.append(moved)
-        scored = evaluator.score_many(candidates)
-        improved = min(scored, key=lambda e: e.objective, default=best)
-        if improved.objective < best.objective:
-            best = improved
-        else:
-            steps = {name: step / 2 for name, step in steps.items()}
-    return best
+def _check(config: CalibrationConfig) -> None:
+    if not config.seeds or len(set(config.seeds)) != len(config.seeds):
+        raise CalibrationRunError(f"--seeds: give distinct seeds, got {list(config.seeds)}")
+    if set(config.grid) != set(GRID):
+        raise CalibrationRunError(f"grid: expected the parameters {sorted(GRID)}, got {sorted(config.grid)}")
+    for name, values in config.grid.items():
+        if not values:
+            raise CalibrationRunError(f"grid: {name} has no values")
+        for value in values:
+            if name == "load_start":
+                ok = value in LOAD_STARTS
+                valid = ", ".join(LOAD_STARTS)
+            else:
+                low, high, _ = CALIBRATED_PARAMETERS[name]
+                ok = (isinstance(value, float | int) and not isinstance(value, bool)
+                      and low <= value <= high)
+                valid = f"{low:g}..{high:g}"
+            if not ok:
+                raise CalibrationRunError(f"grid: {name}: {value!r} is outside {valid}")
 
 
 def _git_commit() -> str:
@@ -239,6 +311,10 @@ def _git_commit() -> str:
     return out.stdout.strip() or "unknown"
 
 
+def _score_chunk(candidates: Sequence[dict[str, Any]], seeds: tuple[int, ...]) -> list[Evaluation]:
+    return [score(c, seeds) for c in candidates]
+
+
 def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Run the calibration; returns the contents of ``calibration.json`` (also written).
 
@@ -246,55 +322,57 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
     """
     if log is None:
         log = logging.getLogger(__name__).info
-    if len(set(config.seeds)) != len(config.seeds) or not config.seeds:
-        raise CalibrationRunError(f"--seeds: give distinct seeds, got {list(config.seeds)}")
-    low, high, _ = CALIBRATED_PARAMETERS["nu"]
-    if (not config.nu_choices or len(set(config.nu_choices)) != len(config.nu_choices)
-            or any(not low <= nu <= high for nu in config.nu_choices)):
-        raise CalibrationRunError(
-            f"--nu: give distinct values in {low:g}..{high:g}, got {list(config.nu_choices)}")
-    n_discrete = len(LOAD_STARTS) * len(config.nu_choices)
-    if config.max_evaluations < n_discrete:
-        raise CalibrationRunError(
-            f"--max-evaluations: at least {n_discrete} (one per discrete choice), got {config.max_evaluations}"
-        )
+    _check(config)
     started = time.perf_counter()
+    candidates = grid_candidates(config.grid)
+    log(f"{len(candidates)} candidates x {len(config.seeds)} seeds")
+    # Contiguous chunks, gathered in order: the result is the same for any number of workers.
+    n_chunks = max(1, min(len(candidates), 8 * config.workers))
+    chunks = [list(c) for c in np.array_split(np.arange(len(candidates)), n_chunks)]
+    evaluations: list[Evaluation] = []
+    if config.workers == 1:
+        for chunk in chunks:
+            evaluations += _score_chunk([candidates[i] for i in chunk], config.seeds)
+    else:
+        context = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(config.workers, mp_context=context) as pool:
+            futures = [pool.submit(_score_chunk, [candidates[i] for i in chunk], config.seeds)
+                       for chunk in chunks]
+            for done, future in enumerate(futures, 1):
+                evaluations += future.result()
+                log(f"scored {len(evaluations)} of {len(candidates)} candidates ({done}/{len(futures)})")
+    ranked = sorted(range(len(evaluations)), key=lambda i: (evaluations[i].objective, i))
+    best = evaluations[ranked[0]]
+    # Candidates that score exactly as the best differ only in parameters the objective cannot
+    # see (e.g. the fallback multiple where no server ever refuses): those are unidentified,
+    # and the grid's order, not the data, chose their value. The runner-up is the best other score.
+    tied = [e for e in evaluations if e.objective == best.objective]
+    unidentified = [name for name in config.grid if len({e.parameters[name] for e in tied}) > 1]
+    runner_up = next((evaluations[i] for i in ranked if evaluations[i].objective > best.objective), best)
     config.out_dir.mkdir(parents=True, exist_ok=True)
-    evaluator = _Evaluator(config, log)
-    try:
-        # 1. every discrete choice at the middle of the continuous ranges
-        sweep = [dict(CONTINUOUS_START, load_start=start, nu=nu)
-                 for start in LOAD_STARTS for nu in config.nu_choices]
-        ranked = sorted(evaluator.score_many(sweep), key=lambda e: e.objective)
-        # 2. refine the best discrete choices
-        refined = [_coordinate_search(evaluator, e) for e in ranked[: config.refine_best]]
-        best = min(refined, key=lambda e: e.objective)
-    finally:
-        evaluator.close()
-
-    trace = pd.DataFrame([{**e.parameters, "objective": e.objective, "within_20": e.within_20,
-                           **{f"ratio {k}": v for k, v in e.ratios.items()}}
-                          for e in evaluator.history])
+    trace = pd.DataFrame([e.row() for e in evaluations])
     results.write_text_atomic(config.out_dir / EVALUATIONS_FILE, trace.to_csv(index=False))
-    parameters = {name: best.parameters[name] for name in CALIBRATED_PARAMETERS}
     document = {
-        "parameters": parameters,
+        "parameters": {name: best.parameters[name] for name in CALIBRATED_PARAMETERS},
         "readings": dict(CALIBRATED_READINGS, load_start=best.parameters["load_start"]),
         "provenance": {
-            "subset": [ratio_key(r) + f" (use case 1, paper {r.speedup})" for r in CALIBRATION_RATIOS],
-            "objective": "mean over seeds and the subset's ratios of |log(ours / paper)|",
+            "rule": "docs/calibration.md, rule 1: learner-free, every grid point, lowest objective",
+            "consumed": [f"{r.method}/{r.reference}/p{r.percentile} (use case 1, paper {r.speedup})"
+                         for r in consumed_numbers()],
+            "implied_over_oracle": {cell_key(m, p): round(v, 4)
+                                    for (m, p), v in implied_over_oracle().items()},
+            "objective": "mean over seeds and the twelve cells of |log(ours / implied)|",
             "objective_value": round(best.objective, 6),
+            "runner_up_objective": round(runner_up.objective, 6),
+            "runner_up": runner_up.parameters,
+            "unidentified": unidentified,
             "within_20_percent": round(best.within_20, 4),
             "ratios_mean_over_seeds": {k: round(v, 4) for k, v in best.ratios.items()},
-            "preset": config.preset,
+            "fallback_share": {k: round(v, 4) for k, v in best.fallback_share.items()},
             "seeds": list(config.seeds),
-            "steps_scale": config.steps_scale,
-            "evaluations": len(evaluator.history),
-            "search": "discrete sweep (load start x nu in "
-                      + ",".join(map(str, config.nu_choices))
-                      + ") at the middle of the ranges, then a coordinate search with halving "
-                      f"steps on the best {config.refine_best}",
-            "ranges": {k: [lo, hi] for k, (lo, hi, _) in CALIBRATED_PARAMETERS.items()},
+            "test_steps": TEST_STEPS,
+            "grid": {k: list(v) for k, v in config.grid.items()},
+            "evaluations": len(evaluations),
             "date": datetime.date.today().isoformat(),
             "command": config.command,
             "package_version": yafs_safetail.__version__,
