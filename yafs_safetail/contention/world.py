@@ -84,7 +84,9 @@ class ContentionConfig:
         background: the load trace's background tenants (False: the servers serve only the users).
         links: ``"shared"`` (processor sharing over each transfer) or ``"at-start"`` (the level
             when the transfer starts); :data:`LINK_MODELS`.
-        world: the world's readings and calibrated parameters (``"calibrated"`` or ``"landed"``).
+        world: the world's readings and calibrated parameters (``"calibrated-v1"``, the first
+            calibration, in which docs/contention.md's figures were measured; ``"calibrated"``,
+            the paper presets' learner-free fit; or ``"landed"``).
         topology: topology JSON (per-server ``IPT`` and ``capacity`` are read here).
         placement: placement JSON.
         traces_dir: the traces folder (None: the repository's).
@@ -107,7 +109,7 @@ class ContentionConfig:
     cancel: bool = True
     background: bool = True
     links: str = "shared"
-    world: str = "calibrated"
+    world: str = "calibrated-v1"
     topology: Path = DEFAULT_TOPOLOGY
     placement: Path = DEFAULT_PLACEMENT
     traces_dir: Path | None = None
