@@ -8,13 +8,13 @@ line each, and the verdict:
     ratios_within_20=<hits>/<23>          goal: >= 80 %
     held_out_within_20=<hits>/<11>        goal: >= 70 %
     calibration_within_20=<hits>/<12>     (the fitted subset, for reference)
-    claims_hold=<hits>/<9>                goal: all
+    claims_hold=<hits>/<11>               goal: all
     access_rate_uc<N>=<mean>              goal: <= 0.5 on every use case
     uc1_default_run_s=<seconds>           goal: <= 30 s on 2 cores (the seed-0 UC1 run's total)
     goals_met=...                         the verdict, one word per goal
     any_policy_ratios_at_most=<lo>-<hi>/23   the most ratios any policy could hold together
                                           within ±20% in these worlds (per seed; results/feasibility.py)
-    any_policy_claims_at_most=<k>/9 [unreachable=uc<N>:<key>,...]   claims some policy could make hold
+    any_policy_claims_at_most=<k>/11 [unreachable=uc<N>:<key>,...]   claims some policy could make hold
 
 Usage::
 

@@ -64,7 +64,7 @@ def make_run(use_case: int = 1, seed: int = 0, beta: int = 20) -> RunMetadata:
     return RunMetadata(
         use_case=use_case, use_case_name="object detection (YOLOv5)", preset="paper", seed=seed,
         n_servers=N_SERVERS, beta=beta, train_steps=120, test_steps=80,
-        topology="topologies/edge5.json", methods=["SafeTail", "Oracle", *BASELINES],
+        topology="topologies/paper_5servers.json", methods=["SafeTail", "Oracle", *BASELINES],
         package_version="0.1.0", command="python experiments/run_usecase.py --uc 1",
     )
 

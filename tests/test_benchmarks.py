@@ -34,7 +34,7 @@ def test_fidelity_benchmark_small_budget(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     lines = done.stdout.strip().splitlines()
     assert any(line.startswith("ratios_within_20=") and line.endswith("/23") for line in lines)
-    assert any(line.startswith("claims_hold=") and line.endswith("/9") for line in lines)
+    assert any(line.startswith("claims_hold=") and line.endswith("/11") for line in lines)
     verdict = next(line for line in lines if line.startswith("goals_met="))
     assert "uc1_time:no" in verdict  # not the full budget
     assert any(line.startswith("any_policy_ratios_at_most=") and line.endswith("/23") for line in lines)

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from yafs_safetail.results import feasibility
 from yafs_safetail.results.feasibility import Bound, WorldRun
 from yafs_safetail.results.files import PERCENTILES
-from yafs_safetail.results.paper import PAPER_RATIOS
+from yafs_safetail.results.paper import PAPER_CLAIMS, PAPER_RATIOS
 
 #: SafeTail's latencies at which every published use-case-1 ratio is exact.
 SAFETAIL_S = {50: 1.0, 90: 2.0, 95: 2.5, 99: 3.0}
@@ -51,6 +51,7 @@ def test_the_papers_own_numbers_can_hold_together_and_safetails_values_lie_insid
     top = feasibility.ceiling([world])
     assert (top.ratios_low, top.ratios_high, top.ratios_total) == (16, 16, 16)
     assert (top.claims, top.claims_total, top.unreachable) == (3, 3, ())
+    assert top.unbounded == ("uc1 servers_1_to_3",)  # counted as reachable, and named
 
 
 def test_ratio_intervals_by_hand():
@@ -125,20 +126,67 @@ def test_a_baseline_that_shares_oracles_tail_cannot_be_beaten_there():
     assert feasibility.claims_reachable(apart)["beats_x23_all"] is True
 
 
-def test_a_claim_that_some_baseline_is_faster_is_a_lower_bound():
+def _uc3_world() -> WorldRun:
+    """Use case 3 with three baselines: MinLoad-2 fastest, then MinProp-3, then Rand-1."""
     summary = pd.DataFrame([
         {"method": "Oracle", "p50_s": 4.0, "p90_s": 5.0, "p95_s": 5.5, "p99_s": 6.0, "mean_target_s": 5.0},
         {"method": "MinLoad-2", "p50_s": 4.2, "p90_s": 5.4, "p95_s": 6.5, "p99_s": 7.0, "mean_target_s": 5.0},
+        {"method": "MinProp-3", "p50_s": 4.6, "p90_s": 6.0, "p95_s": 7.5, "p99_s": 8.0, "mean_target_s": 5.0},
         {"method": "Rand-1", "p50_s": 6.0, "p90_s": 8.0, "p95_s": 9.0, "p99_s": 9.5, "mean_target_s": 5.0},
     ])
-    world = WorldRun(3, 0, summary, {50: 4.0, 90: 5.0, 95: 5.5, 99: 6.0})
+    return WorldRun(3, 0, summary, {50: 4.0, 90: 5.0, 95: 5.5, 99: 6.0})
+
+
+def test_uc3_pair_is_read_with_one_quantifier_more_than_half_of_the_baselines():
+    world = _uc3_world()
     claims = {(b.key, b.percentile): b for b in feasibility.bounds(world) if b.kind == "claim"}
-    assert (claims[("baseline_better_p50_p90", 50)].low_s,
-            claims[("baseline_better_p50_p90", 50)].high_s) == (4.2, math.inf)
-    assert claims[("safetail_better_p95_p99", 99)].high_s == 7.0
+    # Three baselines: more than half is two. "Most baselines faster" puts SafeTail above the
+    # second fastest (MinProp-3); "faster than most" below the second slowest (MinProp-3 too).
+    better = claims[("baseline_better_p50_p90", 50)]
+    assert (better.low_s, better.high_s) == (4.6, math.inf) and better.strict
+    assert better.statement == "claim: most baselines faster at median, p90 (MinProp-3, 2nd fastest of 3)"
+    worse = claims[("safetail_better_p95_p99", 99)]
+    assert (worse.low_s, worse.high_s) == (-math.inf, 8.0)
+    # Not the fastest baseline (MinLoad-2: 5.4 s at p90, 6.5 s at p95), which bounded both
+    # sides in the earlier reading ("some baseline faster", "faster than every baseline").
+    assert claims[("baseline_better_p50_p90", 90)].low_s == 6.0
+    assert claims[("safetail_better_p95_p99", 95)].high_s == 7.5
+
+
+def test_the_claims_checked_since_issue_28_are_bounds_too():
+    world = _uc3_world()
+    claims = {(b.key, b.percentile): b for b in feasibility.bounds(world) if b.kind == "claim"}
+    # UC3: median and p90 below the average target (5 s); Oracle's p90 is 5 s, so the p90
+    # bound cannot be met (strictly below the floor).
+    assert claims[("below_target_p50_p90", 90)].high_s == 5.0
     assert feasibility.claims_reachable(world) == {
         "mostly_1_to_2_servers": None, "baseline_better_p50_p90": True,
-        "safetail_better_p95_p99": True}
+        "safetail_better_p95_p99": True, "below_target_p50_p90": False}
+    # UC2: faster than MinProp-3 at p90, p95, p99 (its own latencies), not at the median.
+    uc2 = WorldRun(2, 0, world.summary, world.floor_s)
+    minprop = {b.percentile: b for b in feasibility.bounds(uc2) if b.key == "beats_minprop3_tails"}
+    assert {p: b.high_s for p, b in minprop.items()} == {90: 6.0, 95: 7.5, 99: 8.0}
+    assert minprop[90].statement == "claim: faster than MinProp-3 at p90, p95, p99"
+    assert feasibility.claims_reachable(uc2)["beats_minprop3_tails"] is True
+    without = WorldRun(2, 0, world.summary[world.summary["method"] != "MinProp-3"], world.floor_s)
+    assert feasibility.claims_reachable(without)["beats_minprop3_tails"] is None
+
+
+def test_every_claim_is_read_and_those_no_interval_expresses_are_named():
+    for claim in PAPER_CLAIMS:
+        assert feasibility.claim_kind(claim.key) in ("latency", "world", "servers")
+    with pytest.raises(KeyError, match="no reading of paper claim 'new_claim'"):
+        feasibility.claim_kind("new_claim")
+    assert feasibility.unbounded_claims([1, 2, 3]) == (
+        "uc1 servers_1_to_3", "uc2 mean_servers_2_to_3", "uc3 mostly_1_to_2_servers")
+    worlds = [exact_world(0, 1.9), exact_world(1, 1.9)]
+    top = feasibility.ceiling(worlds)
+    assert top.unbounded == ("uc1 servers_1_to_3",)
+    line = feasibility.ceiling_line(worlds)
+    assert ("(out of reach: uc1 below_target_all; not expressible as a latency bound, so counted "
+            "as reachable: uc1 servers_1_to_3)") in line
+    text = feasibility.feasibility_markdown(feasibility.check_all(worlds))
+    assert "Claims no latency interval expresses, so not part of this check: uc1 servers_1_to_3." in text
 
 
 def test_the_fewest_statements_to_give_up():

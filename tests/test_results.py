@@ -142,6 +142,29 @@ def test_summary_matches_numpy():
         assert (summary[f"p{p}_s"] >= summary[summary["method"] == "Oracle"][f"p{p}_s"].iloc[0]).all()
 
 
+@pytest.mark.parametrize(("n_requests", "thin"), [
+    (19, (50, 90, 95, 99)), (20, (90, 95, 99)), (99, (90, 95, 99)), (100, (95, 99)),
+    (199, (95, 99)), (200, (99,)), (999, (99,)), (1000, ()), (40000, ()),
+])
+def test_thin_percentiles_have_fewer_than_ten_requests_beyond_them(n_requests, thin):
+    # n·(1 − q) < 10: 1,000 requests leave exactly 10 beyond p99, 999 leave 9.99.
+    assert results.thin_percentiles(n_requests) == thin
+
+
+def test_summary_names_its_thin_percentiles_and_reads_them_back(tmp_path):
+    write_run_folder(tmp_path, np.random.default_rng(4))  # 80 test requests per method
+    summary = results.read_summary_csv(tmp_path)
+    assert (summary["thin_percentiles"] == "p90;p95;p99").all()
+    enough = results.summarize(make_requests(np.random.default_rng(4), n_train=0, n_test=1000,
+                                             methods=("Oracle",)))
+    assert list(enough["thin_percentiles"]) == [""]
+    enough.to_csv(tmp_path / "summary.csv", index=False)
+    assert list(results.read_summary_csv(tmp_path)["thin_percentiles"]) == [""]
+    # A summary.csv from before the column: derived from n_requests.
+    summary.drop(columns="thin_percentiles").to_csv(tmp_path / "summary.csv", index=False)
+    assert (results.read_summary_csv(tmp_path)["thin_percentiles"] == "p90;p95;p99").all()
+
+
 def test_summary_files_are_deterministic(tmp_path):
     first, second = tmp_path / "a", tmp_path / "b"
     write_run_folder(first, np.random.default_rng(6))

@@ -9,13 +9,14 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from results_helpers import make_requests, write_run_folder
+from results_helpers import make_requests, make_run, write_run_folder
 
 from yafs_safetail import results
 from yafs_safetail.results import (
     ResultsFileError,
 )
 from yafs_safetail.results import paper as paper_results
+from yafs_safetail.runs.experiment import REPOSITORY
 
 
 def _toy_summary(latencies: dict[str, tuple[float, float, float, float]]) -> pd.DataFrame:
@@ -84,6 +85,208 @@ def test_claims_are_checked():
     assert results.check_claims(no_windows, 1).set_index("key")["holds"]["servers_1_to_3"] is False
     uc3 = results.check_claims(_toy_summary({"SafeTail": (0.3, 0.4, 0.5, 0.6)}), 3)
     assert uc3.set_index("key")["holds"]["baseline_better_p50_p90"] is None
+
+
+def _holds(summary: pd.DataFrame, use_case: int) -> pd.Series:
+    return results.check_claims(summary, use_case).set_index("key")["holds"]
+
+
+def _with_servers(summary: pd.DataFrame, mean: float, median: float, fewest: int, most: int,
+                  windows: tuple[float, float]) -> pd.DataFrame:
+    """``summary`` with SafeTail's servers per request set (its first row)."""
+    out = summary.copy()
+    out.loc[0, ["mean_n_selected", "median_n_selected", "min_n_selected", "max_n_selected",
+                "min_window_n_selected", "max_window_n_selected"]] = [mean, median, fewest, most,
+                                                                      *windows]
+    return out
+
+
+TOY = {"SafeTail": (0.3, 0.4, 0.5, 0.55), "Oracle": (0.2, 0.3, 0.4, 0.5),
+       "Rand-2": (0.4, 0.5, 0.6, 0.7)}
+
+
+def test_a_policy_that_never_varies_holds_no_claim_about_varying():
+    # One server every time: every β-window mean is 1, inside [1, 3], and the median is 1, at
+    # most 2. Read on the bounds alone both claims would hold; the paper says the count varies.
+    one = _with_servers(_toy_summary(TOY), 1.0, 1.0, 1, 1, (1.0, 1.0))
+    assert _holds(one, 1)["servers_1_to_3"] is False
+    assert _holds(one, 3)["mostly_1_to_2_servers"] is False
+    # Two servers every time: inside the bounds too, and does not vary either.
+    two = _with_servers(_toy_summary(TOY), 2.0, 2.0, 2, 2, (2.0, 2.0))
+    assert _holds(two, 1)["servers_1_to_3"] is False
+    assert _holds(two, 3)["mostly_1_to_2_servers"] is False
+    # Varying within the bounds holds; a window above 3 does not.
+    varied = _with_servers(_toy_summary(TOY), 1.3, 1.0, 1, 3, (1.0, 1.8))
+    assert _holds(varied, 1)["servers_1_to_3"] is True
+    assert _holds(varied, 3)["mostly_1_to_2_servers"] is True
+    beyond = _with_servers(_toy_summary(TOY), 1.3, 1.0, 1, 5, (1.0, 3.2))
+    assert _holds(beyond, 1)["servers_1_to_3"] is False
+    # A summary without β windows (written before them) reads single requests the same way.
+    for fewest, most, holds in ((1, 1, False), (1, 3, True), (1, 5, False)):
+        old = _with_servers(_toy_summary(TOY), 1.5, 1.0, fewest, most, (math.nan, math.nan))
+        assert _holds(old, 1)["servers_1_to_3"] is holds, (fewest, most)
+
+
+def test_uc2_two_to_three_servers_on_average_needs_some_request_on_one_server():
+    # "An average of 2 to 3 edge servers and, in some cases, just 1": a policy sending 2 or 3
+    # every time has its mean in [2, 3] but never sends one server.
+    never_one = _with_servers(_toy_summary(TOY), 2.5, 2.0, 2, 3, (2.2, 2.8))
+    assert _holds(never_one, 2)["mean_servers_2_to_3"] is False
+    sometimes_one = _with_servers(_toy_summary(TOY), 2.5, 2.0, 1, 3, (2.2, 2.8))
+    assert _holds(sometimes_one, 2)["mean_servers_2_to_3"] is True
+    below = _with_servers(_toy_summary(TOY), 1.8, 2.0, 1, 3, (1.5, 2.1))
+    assert _holds(below, 2)["mean_servers_2_to_3"] is False
+
+
+NINE = [f"{family}-{x}" for family in ("Rand", "MinLoad", "MinProp") for x in (1, 2, 3)]
+
+
+def _uc3(safetail_s: float, baselines_s: list[float]) -> pd.DataFrame:
+    """SafeTail and the nine baselines, each at the same latency at every percentile."""
+    latencies = {"SafeTail": (safetail_s,) * 4, "Oracle": (0.1,) * 4}
+    latencies.update({name: (value,) * 4 for name, value in zip(NINE, baselines_s, strict=True)})
+    return _toy_summary(latencies)
+
+
+def test_uc3_the_baselines_mean_more_than_half_of_them_on_both_sides():
+    # SafeTail faster than five of the nine: "SafeTail performed better" holds (the earlier
+    # reading, faster than every baseline, said no), and "the baseline methods outperformed
+    # SafeTail" does not (the earlier reading, some baseline faster, said yes).
+    five_slower = _uc3(1.0, [0.5, 0.6, 0.7, 0.8, 1.1, 1.2, 1.3, 1.4, 1.5])
+    assert _holds(five_slower, 3)["safetail_better_p95_p99"] is True
+    assert _holds(five_slower, 3)["baseline_better_p50_p90"] is False
+    # Five of the nine faster: the other way round.
+    five_faster = _uc3(1.0, [0.5, 0.6, 0.7, 0.8, 0.9, 1.2, 1.3, 1.4, 1.5])
+    assert _holds(five_faster, 3)["safetail_better_p95_p99"] is False
+    assert _holds(five_faster, 3)["baseline_better_p50_p90"] is True
+    # Each percentile on its own: a majority at p95 but not at p99 is not enough.
+    split = five_slower.copy()
+    split.loc[split["method"] == "SafeTail", "p99_s"] = 1.45
+    assert _holds(split, 3)["safetail_better_p95_p99"] is False
+    # An even count: half is not more than half; a tie counts on neither side.
+    six = _toy_summary({"SafeTail": (1.0,) * 4, **{n: (v,) * 4 for n, v in zip(
+        NINE[:6], [0.5, 0.6, 1.0, 1.2, 1.3, 1.4], strict=True)}})
+    assert _holds(six, 3)["safetail_better_p95_p99"] is False
+    assert _holds(six, 3)["baseline_better_p50_p90"] is False
+    # A baseline without a latency was not run: it counts on neither side.
+    absent = _uc3(1.0, [0.5, 0.6, 0.7, 1.1, 1.2, math.nan, math.nan, math.nan, math.nan])
+    assert _holds(absent, 3)["safetail_better_p95_p99"] is False
+    assert _holds(absent, 3)["baseline_better_p50_p90"] is True
+
+
+@given(st.lists(st.floats(0.05, 1.95).filter(lambda v: abs(v - 1.0) > 1e-6), min_size=1,
+                max_size=9))
+@settings(max_examples=60, deadline=None)
+def test_uc3_readings_mirror_each_other(baselines_s):
+    # One quantifier on both sides: reflecting every baseline's latency about SafeTail's
+    # (faster becomes slower by as much) swaps the two verdicts. The earlier pair ("some
+    # baseline faster" against "faster than every baseline") fails this as soon as SafeTail
+    # sits between two baselines.
+    padded = baselines_s + [math.nan] * (9 - len(baselines_s))
+    mirrored = [2.0 - v for v in padded]
+    assert (_holds(_uc3(1.0, padded), 3)["baseline_better_p50_p90"]
+            is _holds(_uc3(1.0, mirrored), 3)["safetail_better_p95_p99"])
+
+
+def test_the_statements_checked_only_since_issue_28():
+    # UC3: "in the median and p90 cases ... better than the target latency" (target 0.6 s).
+    summary = _toy_summary({"SafeTail": (0.5, 0.59, 0.7, 0.9), "Oracle": (0.2, 0.3, 0.4, 0.5),
+                            "MinProp-3": (0.45, 0.65, 0.75, 0.95)})
+    assert _holds(summary, 3)["below_target_p50_p90"] is True
+    late = summary.copy()
+    late.loc[0, "p90_s"] = 0.61
+    assert _holds(late, 3)["below_target_p50_p90"] is False
+    # UC2: "SafeTail outperformed MinProp-3 in other cases" than the median, where MinProp-3
+    # was faster (0.45 against 0.5 here).
+    assert _holds(summary, 2)["beats_minprop3_tails"] is True
+    caught = summary.copy()
+    caught.loc[caught["method"] == "MinProp-3", "p95_s"] = 0.69
+    assert _holds(caught, 2)["beats_minprop3_tails"] is False
+    without = summary[summary["method"] != "MinProp-3"]
+    assert _holds(without, 2)["beats_minprop3_tails"] is None
+
+
+def test_every_claim_has_a_check_and_a_unique_key():
+    everything = _toy_summary({"SafeTail": (0.3, 0.4, 0.5, 0.55), "Oracle": (0.2, 0.3, 0.4, 0.5),
+                               **{n: (0.4, 0.5, 0.6, 0.7) for n in NINE}})
+    for use_case in (1, 2, 3):
+        claims = results.check_claims(everything, use_case)
+        assert claims["key"].is_unique
+        assert all(h in (True, False) for h in claims["holds"]), use_case
+    with pytest.raises(KeyError, match="no check"):
+        paper_results._claim_holds("not_a_claim", everything)
+
+
+# ---------------------------------------------------------------------------- the paper's setting
+
+def test_setting_differences_name_what_is_not_the_papers():
+    run = make_run()
+    run.extra.update({"placement": "placements/paper_5servers.json",
+                      "world": {"name": "calibrated", "target_latency_s": None}})
+    assert results.setting_differences(run) == []
+    landed = make_run()
+    landed.preset = "paper-literal"
+    landed.extra["world"] = {"name": "landed", "target_latency_s": None}
+    assert results.setting_differences(landed) == []  # a preset's world is the paper's reading
+    absolute = make_run()
+    absolute.topology = str(REPOSITORY / "topologies" / "paper_5servers.json")
+    assert results.setting_differences(absolute) == []
+    other = make_run()
+    other.topology = "topologies/3servers.json"
+    other.extra["placement"] = "placements/3servers.json"
+    assert results.setting_differences(other) == [
+        "topology topologies/3servers.json (the paper's: topologies/paper_5servers.json)",
+        "placement placements/3servers.json (the paper's: placements/paper_5servers.json)"]
+    changed = make_run()
+    changed.extra.update({"world": {"name": "calibrated", "target_latency_s": 0.75},
+                          "world_overrides": {"target_latency_s": 0.75, "load_peak_users": 0.0}})
+    assert results.setting_differences(changed) == ["--load-peak-users 0.0",
+                                                    "--target-latency-s 0.75"]
+    # A fixed τ is seen in the world itself, also in a run.json from before the overrides key.
+    older = make_run()
+    older.extra["world"] = {"name": "calibrated", "target_latency_s": 0.75}
+    assert results.setting_differences(older) == [
+        "a fixed target latency of 0.75 s (the paper's τ is Eq. 4's, per request)"]
+    custom = make_run()
+    custom.extra["world"] = {"name": "my-world", "target_latency_s": None}
+    assert results.setting_differences(custom)[0].startswith("world 'my-world'")
+
+
+def test_summary_outside_the_papers_setting_is_not_scored(tmp_path):
+    requests = make_requests(np.random.default_rng(7), n_test=1000,
+                             methods=("SafeTail", "Oracle", "Rand-1"))
+    paper_run = make_run()
+    (tmp_path / "paper").mkdir()
+    results.write_results(tmp_path / "paper", requests, paper_run)
+    text = (tmp_path / "paper" / "summary.md").read_text()
+    assert "**Closeness to the paper (this run):" in text and "not scored" not in text
+    assert "| Oracle over SafeTail |" in text and "| 1.08 |" in text
+    other_run = make_run()
+    other_run.extra["world_overrides"] = {"load_peak_users": 0.0}
+    (tmp_path / "other").mkdir()
+    results.write_results(tmp_path / "other", requests, other_run)
+    text = (tmp_path / "other" / "summary.md").read_text()
+    assert "**Closeness to the paper: not scored.**" in text and "--load-peak-users 0.0" in text
+    assert "Closeness to the paper (this run)" not in text
+    assert "| 1.08 |" not in text and "1.72" not in text  # no paper column filled
+    assert "for information, not a score" in text
+    # The latencies and ratios themselves are the same.
+    assert (tmp_path / "other" / "summary.csv").read_bytes() == (
+        tmp_path / "paper" / "summary.csv").read_bytes()
+
+
+def test_summary_warns_when_percentiles_rest_on_too_few_requests(tmp_path):
+    methods = ("SafeTail", "Oracle", "Rand-1")
+    (tmp_path / "few").mkdir()
+    results.write_results(tmp_path / "few", make_requests(np.random.default_rng(7), n_test=150,
+                                                          methods=methods), make_run())
+    text = (tmp_path / "few" / "summary.md").read_text()
+    # 150 requests: 15 beyond p90, 7.5 beyond p95, 1.5 beyond p99.
+    assert "**Too few test requests for p95, p99:**" in text and "150 per method" in text
+    (tmp_path / "enough").mkdir()
+    results.write_results(tmp_path / "enough", make_requests(np.random.default_rng(7), n_test=1000,
+                                                             methods=methods), make_run())
+    assert "Too few test requests" not in (tmp_path / "enough" / "summary.md").read_text()
 
 
 # ---------------------------------------------------------------------------- markdown

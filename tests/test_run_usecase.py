@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 
 from yafs_safetail import results
+from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.figures import FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR, build_figures
 from yafs_safetail.figures import load_inputs as load_figure_inputs
 from yafs_safetail.runs.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, baseline_names
@@ -307,10 +308,21 @@ def test_target_latency_and_load_level_options(tmp_path):
     assert (rows["target_s"] == 0.75).all()
     # Idle servers: one request's copies never fill a server, so nothing is ever refused.
     assert not rows["refused"].any() and not rows["fallback"].any()
-    world = json.loads((out / "run.json").read_text())["world"]
+    run = json.loads((out / "run.json").read_text())
+    world = run["world"]
     assert world["target_latency_s"] == 0.75 and world["load_peak_users"] == 0
+    # Both options changed the preset's world: recorded, and summary.md scores no closeness.
+    assert run["world_overrides"] == {"target_latency_s": 0.75, "load_peak_users": 0.0}
+    assert "**Closeness to the paper: not scored.**" in (out / "summary.md").read_text()
     # The default: Eq. 4 per request (targets vary) and the preset world's load.
-    default = pd.read_csv(tmp_path_run_default(tmp_path) / "requests.csv")
+    default_out = tmp_path_run_default(tmp_path)
+    default_run = json.loads((default_out / "run.json").read_text())
+    assert "world_overrides" not in default_run
+    assert default_run["placement"] == "placements/paper_5servers.json"
+    text = (default_out / "summary.md").read_text()
+    assert "**Closeness to the paper (this run):" in text
+    assert "**Too few test requests for " in text  # the tiny budget's few test requests
+    default = pd.read_csv(default_out / "requests.csv")
     assert default["target_s"].nunique() > 1 and default["refused"].any()
 
 
@@ -321,7 +333,11 @@ def test_target_compute_option_is_recorded_and_changes_only_the_target(tmp_path)
         done = run_script("--uc", "3", "--out", out, "--quiet", "--no-figures", *TINY, "--workers", "1",
                           "--target-compute", reading)
         assert done.returncode == 0, done.stderr
-        assert json.loads((out / "run.json").read_text())["world"]["target_compute"] == reading
+        run = json.loads((out / "run.json").read_text())
+        assert run["world"]["target_compute"] == reading
+        # Only an option that changes the preset's world is an override (and unscored).
+        own = world_settings("calibrated").target_compute
+        assert run.get("world_overrides") == (None if reading == own else {"target_compute": reading})
         runs[reading] = pd.read_csv(out / "requests.csv")
     request, trace = runs["request"], runs["trace_median"]
     # UC3's compute depends on the clip: the target follows the request's input or not.

@@ -17,15 +17,22 @@ Each statement becomes an interval on SafeTail's q-th percentile latency S_q (se
   (``fidelity.TOLERANCE``): ``latency(M) / S_q ∈ [0.8 r, 1.2 r]`` for "SafeTail over M",
   ``S_q / latency(M) ∈ [0.8 r, 1.2 r]`` for "M over SafeTail".
 * **a claim about SafeTail's latency** (``paper.PAPER_CLAIMS``): below the average target
-  (S_q ≤ τ̄), faster than every x = 2, 3 baseline or every baseline (S_q ≤ the smallest of
-  their q-latencies), some baseline faster (S_q ≥ the smallest).
+  (S_q < τ̄), faster than every x = 2, 3 baseline (S_q < the fastest of them), faster than
+  MinProp-3 (S_q < its q-latency), and UC3's pair read with one quantifier: faster than more
+  than half of the N baselines run (S_q < the m-th slowest, m = ⌊N/2⌋ + 1) or more than half
+  of them faster than SafeTail (S_q > the m-th fastest).
 
 The intersection is empty exactly when two statements contradict each other in this world.
 The claims' inequalities are strict, as the scorecard tests them (a baseline whose p99 is
 Oracle's own cannot be beaten there); each percentile is checked on its own, so this is a
-necessary condition only (generous to the paper): a percentile that passes may still
-be out of reach for a policy that must also hold the claims about how many servers it uses,
-which bound no latency and are not part of the check. SafeTail's own latencies are never read.
+necessary condition only (generous to the paper). Every claim is one of three kinds
+(:func:`claim_kind`): a bound on SafeTail's latency (above), a fact of the world (Oracle's p99
+above the target: it holds or not whatever the policy), or a statement about how many servers
+SafeTail sends, which no latency interval can express: those are reported as such
+(:func:`claims_reachable` gives None, :class:`Ceiling` and the reports name them), not checked,
+and a percentile that passes may still be out of reach for a policy that must also hold them.
+A claim of none of the three kinds is an error, so a new claim cannot slip through unread.
+SafeTail's own latencies are never read.
 
 Only the single-user world (``run_usecase.py``) makes every method face the same requests with
 the same server states whatever the others choose; that is what makes the floor and the
@@ -53,27 +60,76 @@ from yafs_safetail.results.files import (
     read_run_json,
     read_summary_csv,
 )
-from yafs_safetail.results.paper import PAPER_CLAIMS, PAPER_RATIOS, PERCENTILE_NAMES
+from yafs_safetail.results.paper import MINPROP_3, PAPER_CLAIMS, PAPER_RATIOS, PERCENTILE_NAMES
 from yafs_safetail.results.report import frame_markdown
 
 FEASIBILITY_FILE = "feasibility.csv"
 
-#: Claims that bound SafeTail's latency: key -> (percentiles, side, reference, label). side
-#: "high": S_q at most the reference; "low": at least it. The reference is the average target
-#: ("target") or the smallest q-latency among the named baselines ("x23": Rand/MinLoad/MinProp
-#: with x = 2 or 3; "all": every Rand/MinLoad/MinProp baseline). The label names the statement
-#: in reports; ``{reference}`` becomes the target or the fastest such baseline.
-LATENCY_CLAIMS: dict[str, tuple[tuple[int, ...], str, str, str]] = {
-    "below_target_all": (PERCENTILES, "high", "target",
-                         "claim: below {reference} at every percentile"),
-    "median_below_target": ((50,), "high", "target", "claim: median below {reference}"),
-    "beats_x23_all": (PERCENTILES, "high", "x23",
-                      "claim: faster than every x = 2, 3 baseline ({reference})"),
-    "safetail_better_p95_p99": ((95, 99), "high", "all",
-                                "claim: faster than every baseline at p95, p99 ({reference})"),
-    "baseline_better_p50_p90": ((50, 90), "low", "all",
-                                "claim: some baseline faster at median, p90 ({reference})"),
+@dataclass(frozen=True, slots=True)
+class LatencyClaim:
+    """A claim read as a bound on SafeTail's q-th percentile latency S_q.
+
+    Attributes:
+        percentiles: the percentiles it bounds.
+        side: ``high``: S_q below the reference; ``low``: above it (strict either way).
+        reference: ``target`` (the average target), ``x23`` (the fastest Rand/MinLoad/MinProp
+            with x = 2 or 3), ``majority`` (the baseline that decides "more than half of the
+            baselines run": see :func:`_claim_reference`), or a method's name (its latency).
+        label: names the statement in reports; ``{reference}`` becomes what set the bound.
+    """
+
+    percentiles: tuple[int, ...]
+    side: str
+    reference: str
+    label: str
+
+
+#: The claims that bound SafeTail's latency, by key.
+LATENCY_CLAIMS: dict[str, LatencyClaim] = {
+    "below_target_all": LatencyClaim(PERCENTILES, "high", "target",
+                                     "claim: below {reference} at every percentile"),
+    "median_below_target": LatencyClaim((50,), "high", "target", "claim: median below {reference}"),
+    "below_target_p50_p90": LatencyClaim((50, 90), "high", "target",
+                                         "claim: median, p90 below {reference}"),
+    "beats_x23_all": LatencyClaim(PERCENTILES, "high", "x23",
+                                  "claim: faster than every x = 2, 3 baseline ({reference})"),
+    "beats_minprop3_tails": LatencyClaim((90, 95, 99), "high", MINPROP_3,
+                                         "claim: faster than {reference} at p90, p95, p99"),
+    "safetail_better_p95_p99": LatencyClaim((95, 99), "high", "majority",
+                                            "claim: faster than most baselines at p95, p99 "
+                                            "({reference})"),
+    "baseline_better_p50_p90": LatencyClaim((50, 90), "low", "majority",
+                                            "claim: most baselines faster at median, p90 "
+                                            "({reference})"),
 }
+#: Claims about the world alone: Oracle's latencies against the target, whatever the policy.
+WORLD_CLAIMS: frozenset[str] = frozenset({"oracle_tail_above_target"})
+#: Claims about how many servers SafeTail sends: no interval on its latency expresses them.
+SERVER_CLAIMS: frozenset[str] = frozenset({"servers_1_to_3", "mean_servers_2_to_3",
+                                           "mostly_1_to_2_servers"})
+
+
+def claim_kind(key: str) -> str:
+    """``latency``, ``world`` or ``servers``: how this check reads the claim ``key``.
+
+    Raises:
+        KeyError: a claim of none of the three kinds (a new claim must be given one here).
+    """
+    if key in LATENCY_CLAIMS:
+        return "latency"
+    if key in WORLD_CLAIMS:
+        return "world"
+    if key in SERVER_CLAIMS:
+        return "servers"
+    raise KeyError(f"feasibility: no reading of paper claim {key!r} (latency, world or servers)")
+
+
+def unbounded_claims(use_cases: Sequence[int]) -> tuple[str, ...]:
+    """``"uc<N> <key>"`` of every claim of these use cases that no latency interval expresses."""
+    wanted = set(use_cases)
+    return tuple(f"uc{c.use_case} {c.key}" for c in PAPER_CLAIMS
+                 if c.use_case in wanted and claim_kind(c.key) == "servers")
+
 
 FEASIBILITY_COLUMNS: tuple[str, ...] = (
     "use_case", "seed", "percentile", "floor_s", "low_s", "high_s", "feasible", "low_statement",
@@ -161,20 +217,41 @@ def _latency(summary: pd.DataFrame, method: str, percentile: int) -> float:
     return math.nan if row.empty else float(row[f"p{percentile}_s"].iloc[0])
 
 
-def _claim_reference(summary: pd.DataFrame, which: str, percentile: int) -> tuple[float, str]:
-    if which == "target":
-        row = summary[summary["method"].isin([SAFETAIL, ORACLE])]
-        # τ is the request's, not the policy's: every method's rows carry the same targets.
-        return (math.nan, "") if row.empty else (float(row["mean_target_s"].iloc[0]),
-                                                  "the average target")
+def _average_target(summary: pd.DataFrame) -> float:
+    row = summary[summary["method"].isin([SAFETAIL, ORACLE])]
+    # τ is the request's, not the policy's: every method's rows carry the same targets.
+    return math.nan if row.empty else float(row["mean_target_s"].iloc[0])
+
+
+def _ordinal(k: int) -> str:
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
+
+
+def _claim_reference(summary: pd.DataFrame, claim: LatencyClaim, percentile: int) -> tuple[float, str]:
+    """The latency that bounds S_q for ``claim`` and what it is, or (NaN, "") when the run lacks
+    what it needs. For ``majority`` over the N baselines with a latency at q, ascending, and
+    m = ⌊N/2⌋ + 1 (more than half): "more than half faster than SafeTail" is S_q > the m-th
+    fastest; "SafeTail faster than more than half" is S_q < the m-th slowest."""
+    if claim.reference == "target":
+        target = _average_target(summary)
+        return (math.nan, "") if math.isnan(target) else (target, "the average target")
+    if claim.reference not in ("x23", "majority"):
+        latency = _latency(summary, claim.reference, percentile)
+        return (math.nan, "") if math.isnan(latency) else (latency, claim.reference)
     names = baselines_of(summary["method"])
-    if which == "x23":
+    if claim.reference == "x23":
         names = [b for b in names if parse_method(b)[1] in (2, 3)]
-    if not names:
-        return math.nan, ""
     latencies = {b: _latency(summary, b, percentile) for b in names}
-    fastest = min(latencies, key=lambda b: latencies[b])
-    return latencies[fastest], fastest
+    ranked = sorted((b for b in names if not math.isnan(latencies[b])), key=lambda b: latencies[b])
+    if not ranked:
+        return math.nan, ""
+    if claim.reference == "x23":
+        return latencies[ranked[0]], ranked[0]
+    n = len(ranked)
+    m = n // 2 + 1
+    rank = m if claim.side == "low" else n - m + 1
+    name = ranked[rank - 1]
+    return latencies[name], f"{name}, {_ordinal(rank)} fastest of {n}"
 
 
 def bounds(world: WorldRun) -> list[Bound]:
@@ -197,15 +274,16 @@ def bounds(world: WorldRun) -> list[Bound]:
         text = f"{name} = {ratio.speedup:g} ±{TOLERANCE:.0%}"
         out.append(Bound(ratio.percentile, text, *interval, "ratio", text))
     for claim in PAPER_CLAIMS:
-        if claim.use_case != world.use_case or claim.key not in LATENCY_CLAIMS:
+        # claim_kind raises for a claim it cannot read: none is left out unnoticed.
+        if claim.use_case != world.use_case or claim_kind(claim.key) != "latency":
             continue
-        percentiles, side, which, label = LATENCY_CLAIMS[claim.key]
-        for p in percentiles:
-            value, source = _claim_reference(world.summary, which, p)
+        reading = LATENCY_CLAIMS[claim.key]
+        for p in reading.percentiles:
+            value, source = _claim_reference(world.summary, reading, p)
             if math.isnan(value):
                 continue
-            text = label.format(reference=source)
-            low, high = (-math.inf, value) if side == "high" else (value, math.inf)
+            text = reading.label.format(reference=source)
+            low, high = (-math.inf, value) if reading.side == "high" else (value, math.inf)
             out.append(Bound(p, text, low, high, "claim", claim.key, strict=True))
     return out
 
@@ -272,7 +350,11 @@ def claims_reachable(world: WorldRun) -> dict[str, bool | None]:
     A claim about SafeTail's latency is reachable when, at each of its percentiles, its bound
     meets the floor. "Even Oracle's p99 exceeds the average target" is a fact of the world
     (reachable when it holds). The claims about how many servers SafeTail uses bound nothing
-    here: None.
+    here: None (:func:`unbounded_claims` names them for the reports), as is a latency claim
+    whose reference the run lacks (e.g. no MinProp-3).
+
+    Raises:
+        KeyError: a claim :func:`claim_kind` cannot read.
     """
     every = bounds(world)
     floors = {b.percentile: b for b in every if b.kind == "floor"}
@@ -280,11 +362,11 @@ def claims_reachable(world: WorldRun) -> dict[str, bool | None]:
     for claim in PAPER_CLAIMS:
         if claim.use_case != world.use_case:
             continue
-        if claim.key == "oracle_tail_above_target":
-            target, _ = _claim_reference(world.summary, "target", 99)
+        kind = claim_kind(claim.key)
+        if kind == "world":
             oracle = _latency(world.summary, ORACLE, 99)
-            out[claim.key] = None if math.isnan(oracle) else bool(oracle > target)
-        elif claim.key in LATENCY_CLAIMS:
+            out[claim.key] = None if math.isnan(oracle) else bool(oracle > _average_target(world.summary))
+        elif kind == "latency":
             mine = [b for b in every if b.key == claim.key]
             # No bound (e.g. no x = 2, 3 baseline in the run): nothing to check, as check_claims.
             out[claim.key] = all(_meet([floors[b.percentile], b]) for b in mine) if mine else None
@@ -347,6 +429,9 @@ class Ceiling:
         claims: claims reachable on their own in most seeds (those that bound nothing here
             count as reachable), out of ``claims_total``.
         unreachable: ``"uc<N> <key>"`` of every claim no policy can make hold in most seeds.
+        unbounded: ``"uc<N> <key>"`` of every claim no latency interval expresses (how many
+            servers SafeTail sends): counted among ``claims`` as reachable, since this check
+            cannot rule them out, and named so that no reader takes them as checked.
     """
 
     ratios_low: int
@@ -355,6 +440,7 @@ class Ceiling:
     claims: int
     claims_total: int
     unreachable: tuple[str, ...]
+    unbounded: tuple[str, ...] = ()
 
 
 def ceiling(worlds: Sequence[WorldRun]) -> Ceiling:
@@ -373,7 +459,8 @@ def ceiling(worlds: Sequence[WorldRun]) -> Ceiling:
     unreachable = tuple(f"uc{uc} {key}" for (uc, key), seen in verdicts.items()
                         if sum(seen) * 2 <= len(seen))
     return Ceiling(min(per_seed.values()), max(per_seed.values()), sum(totals.values()),
-                   len(verdicts) - len(unreachable), len(verdicts), unreachable)
+                   len(verdicts) - len(unreachable), len(verdicts), unreachable,
+                   unbounded_claims(sorted(totals)))
 
 
 def ceiling_line(worlds: Sequence[WorldRun]) -> str:
@@ -381,7 +468,13 @@ def ceiling_line(worlds: Sequence[WorldRun]) -> str:
     top = ceiling(worlds)
     ratios = (f"{top.ratios_low}" if top.ratios_low == top.ratios_high
               else f"{top.ratios_low}–{top.ratios_high}")
-    missing = "" if not top.unreachable else f" (out of reach: {', '.join(top.unreachable)})"
+    notes = []
+    if top.unreachable:
+        notes.append(f"out of reach: {', '.join(top.unreachable)}")
+    if top.unbounded:
+        notes.append(f"not expressible as a latency bound, so counted as reachable: "
+                     f"{', '.join(top.unbounded)}")
+    missing = f" ({'; '.join(notes)})" if notes else ""
     return (f"Whatever the policy, in these worlds: at most {ratios} of the {top.ratios_total} "
             f"published ratios within ±{TOLERANCE:.0%} together (per seed), and at most "
             f"{top.claims} of the {top.claims_total} claims{missing}.")
@@ -424,7 +517,12 @@ def feasibility_markdown(checked: pd.DataFrame) -> str:
     """REPORT.md's part: the count, the note, the table."""
     count = reachable_count(checked)
     lines = [f"Percentiles at which the paper's statements can hold together: {count[0]} of "
-             f"{count[1]}.", "", FEASIBILITY_NOTE, "", *frame_markdown(feasibility_display(checked))]
+             f"{count[1]}.", "", FEASIBILITY_NOTE, ""]
+    unbounded = unbounded_claims(sorted({int(u) for u in checked["use_case"]}))
+    if unbounded:
+        lines += [f"Claims no latency interval expresses, so not part of this check: "
+                  f"{', '.join(unbounded)}.", ""]
+    lines += frame_markdown(feasibility_display(checked))
     return "\n".join(lines) + "\n"
 
 

@@ -1,6 +1,6 @@
 """The fidelity scorecard: every number and claim the paper publishes, against ours.
 
-For each of the paper's 23 stated ratios (``paper_results.PAPER_RATIOS``) and 9 qualitative
+For each of the paper's 23 stated ratios (``paper_results.PAPER_RATIOS``) and 11 qualitative
 claims (``paper_results.PAPER_CLAIMS``), across the seeds of one preset: the paper's value,
 ours (a ratio: the geometric mean over seeds with a 95% t-interval on the log scale, so it never
 leaves (0, ∞); a claim: the share of seeds in which it holds), the relative error, whether it

@@ -50,10 +50,34 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "mean_abs_reward",
     "min_window_n_selected",
     "max_window_n_selected",
+    "thin_percentiles",
 )
 #: Summary columns added after the first release: a summary.csv written before them reads with
-#: NaN there.
-OPTIONAL_SUMMARY_COLUMNS: tuple[str, ...] = ("min_window_n_selected", "max_window_n_selected")
+#: NaN there (``thin_percentiles``: computed from ``n_requests``, as it is a function of it).
+OPTIONAL_SUMMARY_COLUMNS: tuple[str, ...] = ("min_window_n_selected", "max_window_n_selected",
+                                             "thin_percentiles")
+
+#: A percentile is trusted when at least this many test requests lie beyond it: the q-th
+#: percentile of n requests rests on the n·(1 − q) slowest ones, and with fewer than 10 of them
+#: it moves with the luck of a handful of requests (p99 needs 1,000 test requests).
+MIN_REQUESTS_BEYOND_PERCENTILE = 10
+#: Joins the names in the ``thin_percentiles`` column.
+THIN_SEPARATOR = ";"
+
+
+def thin_percentiles(n_requests: int) -> tuple[int, ...]:
+    """The percentiles of ``PERCENTILES`` with fewer than ``MIN_REQUESTS_BEYOND_PERCENTILE``
+    of ``n_requests`` requests beyond them: n·(1 − q/100) < 10.
+
+    Integer arithmetic (n·(100 − q) < 1000), so 1,000 requests are exactly enough for p99.
+    """
+    return tuple(p for p in PERCENTILES
+                 if n_requests * (100 - p) < MIN_REQUESTS_BEYOND_PERCENTILE * 100)
+
+
+def thin_percentiles_text(n_requests: int) -> str:
+    """``thin_percentiles`` as the summary column writes it: e.g. ``p95;p99``; empty: none."""
+    return THIN_SEPARATOR.join(f"p{p}" for p in thin_percentiles(n_requests))
 
 # Floats are written as Python's shortest round-trip repr: deterministic (identical data gives
 # identical bytes) and lossless, so a summary recomputed from requests.csv equals the one
@@ -235,6 +259,13 @@ def _check_requests_values(frame: pd.DataFrame, file: Path) -> None:
 #: ``run.json`` key of a run whose learning rate was set instead of the preset's
 #: (``--learning-rate``); absent when the preset's own rate was used.
 LEARNING_RATE_OVERRIDE_KEY = "learning_rate_override"
+#: ``run.json`` key of the world settings a run's own options changed from its preset's world
+#: (``--target-latency-s``, ``--load-peak-users``, ``--target-compute``: name -> value); absent
+#: when none did. The ``world`` key holds the settings after them.
+WORLD_OVERRIDES_KEY = "world_overrides"
+#: ``run.json`` key of the placement file used (beside ``topology``); absent in runs written
+#: before it was recorded.
+PLACEMENT_KEY = "placement"
 
 
 @dataclass(slots=True)
@@ -332,7 +363,8 @@ def read_summary_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     """
     file = _results_file(path, SUMMARY_CSV_FILE)
     try:
-        frame = pd.read_csv(file, dtype={"method": str, "preset": str}, keep_default_na=True)
+        frame = pd.read_csv(file, dtype={"method": str, "preset": str, "thin_percentiles": str},
+                            keep_default_na=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError,
             ValueError) as error:
         raise ResultsFileError(f"{file}: not a readable CSV file: {_one_line(error)}") from None
@@ -343,5 +375,11 @@ def read_summary_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     if missing:
         raise ResultsFileError(f"{file}: missing column(s) {', '.join(missing)}")
     frame["preset"] = frame["preset"].fillna("")
+    # An empty cell (no thin percentile) reads as NaN, and a file from before the column has
+    # NaN throughout: both are filled from n_requests, of which the column is a function.
+    frame["thin_percentiles"] = [
+        text if isinstance(text, str) else thin_percentiles_text(int(n)) if pd.notna(n) else ""
+        for text, n in zip(frame["thin_percentiles"], frame["n_requests"], strict=True)
+    ]
     return frame
 

@@ -12,6 +12,7 @@ import pandas as pd
 
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, sort_methods
 from yafs_safetail.results.files import (
+    MIN_REQUESTS_BEYOND_PERCENTILE,
     PERCENTILES,
     RUN_FILE,
     SUMMARY_CSV_FILE,
@@ -20,11 +21,17 @@ from yafs_safetail.results.files import (
     _csv_text,
     read_requests_csv,
     read_run_json,
+    thin_percentiles,
     write_requests_csv,
     write_run_json,
     write_text_atomic,
 )
-from yafs_safetail.results.paper import PERCENTILE_NAMES, check_claims, speedup_table
+from yafs_safetail.results.paper import (
+    PERCENTILE_NAMES,
+    check_claims,
+    setting_differences,
+    speedup_table,
+)
 from yafs_safetail.results.stats import summarize
 
 # --------------------------------------------------------------------------------------------
@@ -67,8 +74,33 @@ def _stated_lines(table: pd.DataFrame) -> list[str]:
     return [f"- {s}" for s in statements]
 
 
+def _thin_lines(summary: pd.DataFrame) -> list[str]:
+    """The warning about percentiles resting on too few requests, or nothing."""
+    if summary.empty:
+        return []
+    fewest = int(summary["n_requests"].min())
+    thin = thin_percentiles(fewest)
+    if not thin:
+        return []
+    names = ", ".join(PERCENTILE_NAMES[p] for p in thin)
+    return [
+        f"**Too few test requests for {names}:** a percentile q rests on the n·(1 − q) requests "
+        f"beyond it, and with fewer than {MIN_REQUESTS_BEYOND_PERCENTILE} it moves with the luck of "
+        f"a handful (p99 needs {MIN_REQUESTS_BEYOND_PERCENTILE * 100:,} test requests). This run has "
+        f"{fewest:,} per method (the fewest), so read {names} here, and the ratios and claims "
+        "built on them, as rough.",
+        "",
+    ]
+
+
 def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> str:
     """The run's markdown report: latency table, the paper's ratios, the paper's claims.
+
+    A run outside the paper's setting (:func:`paper.setting_differences`: another topology or
+    placement, or a world changed by the run's options) is not scored against the paper: no
+    closeness line and no "paper" columns, only a line saying why; its claims are listed for
+    information. A run whose percentiles rest on too few requests
+    (:func:`files.thin_percentiles`) gets a warning naming them.
 
     Args:
         summary: from :func:`summarize`.
@@ -78,13 +110,24 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
         Markdown text ending with a newline.
     """
     use_case = run.use_case if run else None
+    differences = setting_differences(run) if run else []
+    # The paper's numbers belong to its setting: outside it, a comparison would score nothing.
+    scored_use_case = None if differences else use_case
     if run:
         title = (f"# SafeTail results: use case {run.use_case} ({run.use_case_name}), "
                  f"preset `{run.preset}`{run.learning_rate_note}, seed {run.seed}")
     else:
         title = "# SafeTail results (no run.json: use case, preset and seed unknown)"
     lines = [title, ""]
-    if use_case is not None and SAFETAIL in set(summary["method"]):
+    lines += _thin_lines(summary)
+    if differences:
+        lines += [
+            "**Closeness to the paper: not scored.** This run is not in the paper's setting: "
+            f"{'; '.join(differences)}. The paper's numbers were measured in its own setting, so "
+            "the \"paper\" columns are left empty and the claims below are for information.",
+            "",
+        ]
+    elif use_case is not None and SAFETAIL in set(summary["method"]):
         from yafs_safetail.results.fidelity import run_line  # fidelity reads this module's tables
 
         lines += [run_line(summary, use_case), ""]
@@ -106,7 +149,7 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
          "mean target", "target met", "fallback rate"],
         rows,
     )
-    table = speedup_table(summary, use_case)
+    table = speedup_table(summary, scored_use_case)
     lines += ["", "## Oracle vs SafeTail", ""]
     oracle_lines = _speedup_lines(table, ORACLE, SAFETAIL)
     if oracle_lines:
@@ -139,9 +182,11 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     if use_case is not None:
         claims = check_claims(summary, use_case)
         if not claims.empty:
-            lines += ["", "## The paper's qualitative statements", "",
-                      "Where the paper is vague, our reading is written into the statement "
-                      "(test phase; target = the average target latency).", ""]
+            note = ("Where the paper is vague, our reading is written into the statement "
+                    "(test phase; target = the average target latency).")
+            if differences:
+                note += " Not the paper's setting (above): for information, not a score."
+            lines += ["", "## The paper's qualitative statements", "", note, ""]
             verdict = {True: "yes", False: "no", None: "cannot check"}
             lines += markdown_table(["paper says", "holds in this run"],
                             [[t, verdict[h]] for t, h in zip(claims["text"], claims["holds"],

@@ -30,6 +30,7 @@ from yafs_safetail.results.files import (
     read_requests_csv,
     read_run_json,
     read_summary_csv,
+    thin_percentiles_text,
 )
 
 # --------------------------------------------------------------------------------------------
@@ -55,6 +56,9 @@ def summarize(requests: pd.DataFrame, preset: str = "", beta: int | None = None)
         beta: β; the servers per request averaged over consecutive windows of β test steps (the
             paper's Fig. (e) points) give ``min_window_n_selected``/``max_window_n_selected``
             (NaN when None).
+
+    ``thin_percentiles`` names the percentiles with fewer than 10 test requests beyond them
+    (``files.thin_percentiles``), e.g. ``p95;p99``; empty when there are none.
 
     Returns:
         One row per method with a test row, in report order, columns ``SUMMARY_COLUMNS``.
@@ -97,6 +101,7 @@ def summarize(requests: pd.DataFrame, preset: str = "", beta: int | None = None)
             "mean_abs_reward": _nanmean(np.abs(part["reward"].to_numpy(dtype=float))),
             "min_window_n_selected": float(windows.min()),
             "max_window_n_selected": float(windows.max()),
+            "thin_percentiles": thin_percentiles_text(len(part)),
         })
     frame = pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
     return frame.astype({"n_requests": "int64", "min_n_selected": "int64",

@@ -197,6 +197,7 @@ class _Inputs:
     scenario: EdgeScenario
     train_world: EdgeWorld | None
     test_world: EdgeWorld
+    world_overrides: dict[str, Any] = field(default_factory=dict)
 
 
 def _check(config: ExperimentConfig) -> _Inputs:
@@ -245,14 +246,18 @@ def _check(config: ExperimentConfig) -> _Inputs:
     n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
     check_budget(config, base, learner_config, test_steps, n_methods)
     settings = config.world or world_settings(PRESET_WORLDS[config.preset])
+    overrides: dict[str, Any] = {}
     for name in ("target_latency_s", "load_peak_users", "target_compute"):  # the run's own options over the world's
         value = getattr(config, name)
         if value is None:
             continue
         try:
-            settings = dataclasses.replace(settings, **{name: value})
+            changed = dataclasses.replace(settings, **{name: value})
         except CalibrationError:
             raise ExperimentError(f"--{name.replace('_', '-')}: {value!r} is out of range") from None
+        if changed != settings:  # an option repeating the world's own value leaves it the preset's
+            overrides[name] = value
+        settings = changed
 
     def world(phase: str, n_steps: int) -> EdgeWorld:
         return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
@@ -264,6 +269,7 @@ def _check(config: ExperimentConfig) -> _Inputs:
         scenario=scenario,
         train_world=world("train", learner_config.train_steps) if config.policy is None else None,
         test_world=world("test", test_steps),
+        world_overrides=overrides,
     )
 
 
@@ -533,6 +539,11 @@ def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, f
     return [by_name[name] for name in job.method_names]
 
 
+def _recorded_path(path: Path) -> str:
+    """A file's path as run.json records it: relative to the project when inside it."""
+    return os.path.relpath(path, REPOSITORY) if path.resolve().is_relative_to(REPOSITORY) else str(path)
+
+
 def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
                   methods: list[str]) -> results.RunMetadata:
     test_world = inputs.test_world
@@ -546,8 +557,7 @@ def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
         beta=learner.config.beta,
         train_steps=0 if inputs.train_world is None else inputs.learner_config.train_steps,
         test_steps=test_world.n_steps,
-        topology=os.path.relpath(topology, REPOSITORY)
-        if topology.resolve().is_relative_to(REPOSITORY) else str(topology),
+        topology=_recorded_path(topology),
         methods=methods,
         package_version=yafs_safetail.__version__,
         command=config.command,
@@ -558,6 +568,11 @@ def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
             "fallback_latency_s": test_world.fallback_latency_s,
             "nu": test_world.nu,
             "world": test_world.settings.to_dict(),
+            results.PLACEMENT_KEY: _recorded_path(Path(config.placement)),
+            # Only when set, as learning_rate_override: summary.md scores no closeness to the
+            # paper in a world the run's options changed.
+            **({results.WORLD_OVERRIDES_KEY: dict(inputs.world_overrides)}
+               if inputs.world_overrides else {}),
             "learner": learner.config.to_dict(),
             "training_rounds": learner.n_training_rounds,
             "final_epsilon": learner.epsilon,
