@@ -89,9 +89,9 @@ def test_settings_are_validated():
 def test_the_shipped_calibration_names_every_parameter_and_its_provenance():
     data = read_calibration()
     assert set(CALIBRATED_PARAMETERS) <= set(data["parameters"])
-    for key in ("subset", "seeds", "objective", "date", "command"):
+    for key in ("consumed", "seeds", "objective", "date", "command", "git_commit", "unidentified"):
         assert key in data["provenance"], key
-    assert len(data["provenance"]["subset"]) == 12
+    assert len(data["provenance"]["consumed"]) == 16
     settings = world_settings("calibrated")
     assert settings.propagation_rtt_fraction == 0.5 and settings.name == "calibrated"
     assert world_settings("landed") == LANDED

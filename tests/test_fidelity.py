@@ -42,7 +42,7 @@ def test_exact_summaries_reproduce_every_ratio():
     assert ratios["relative_error"].abs().max() < 1e-12
     assert ratios["within_tolerance"].all()
     counts = fidelity.counts(card)
-    assert counts["calibration"] == (12, 12) and counts["held-out"] == (4, 4)
+    assert counts["calibration"] == (16, 16) and counts["held-out"] == (0, 0)
     assert "16 of 16" in fidelity.counts_line(card)
 
 
@@ -86,6 +86,6 @@ def test_access_rate_goal_and_markdown_and_figure(tmp_path):
 
 def test_run_line_of_a_single_run():
     line = fidelity.run_line(summary(1.0), 1)
-    assert "16 of 16" in line and "calibration subset 12 of 12" in line
+    assert "16 of 16" in line and "calibration subset 16 of 16" in line
     other = results.speedup(summary(1.0), "SafeTail", "Rand-1", 50)
     assert math.isclose(other, 1.72)

@@ -323,7 +323,9 @@ def test_target_latency_and_load_level_options(tmp_path):
     assert "**Closeness to the paper (this run):" in text
     assert "**Too few test requests for " in text  # the tiny budget's few test requests
     default = pd.read_csv(default_out / "requests.csv")
-    assert default["target_s"].nunique() > 1 and default["refused"].any()
+    assert default["target_s"].nunique() > 1
+    # The calibrated world's load (no server is ever full there, so nothing to count refusals by).
+    assert default_run["world"]["load_peak_users"] == world_settings("calibrated").load_peak_users > 0
 
 
 def test_target_compute_option_is_recorded_and_changes_only_the_target(tmp_path):

@@ -62,7 +62,7 @@ from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, make_baseline
 from yafs_safetail.results.files import PERCENTILES
-from yafs_safetail.results.paper import PAPER_RATIOS, PaperRatio, paper_speedup
+from yafs_safetail.results.paper import CALIBRATION_RATIOS, PaperRatio, paper_speedup
 from yafs_safetail.runs.workers import method_rng
 
 #: The single-server baselines whose latency over Oracle's the fit matches.
@@ -105,8 +105,7 @@ def implied_over_oracle() -> dict[tuple[str, int], float]:
 def consumed_numbers() -> tuple[PaperRatio, ...]:
     """The published numbers the fit consumes (the calibration subset): UC1's ratios of
     SafeTail against the x = 1 baselines and against Oracle."""
-    return tuple(r for r in PAPER_RATIOS if r.use_case == 1
-                 and {r.method, r.reference} & {*X1_BASELINES, ORACLE})
+    return CALIBRATION_RATIOS
 
 
 def cell_key(method: str, percentile: int) -> str:
