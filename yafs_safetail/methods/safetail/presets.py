@@ -43,14 +43,16 @@ TUNED_EXPLORATION_FRACTION = 0.5
 
 # The original code's schedule (facts.md, "Training schedule of the original code"): a replay
 # memory of 2,500 tuples; after every step one Keras fit on 128 of them with a 20 % validation
-# split and Keras's default minibatch of 32, i.e. four Adam updates per step; runs of 180,000
-# (UC2) and 300,000 (UC1, UC3) steps, 30 times the 50·β steps the paper plots.
+# split and Keras's default minibatch of 32, i.e. four Adam updates per step.
 ORIGINAL_REPLAY_TUPLES = 2500
-ORIGINAL_UPDATES_PER_STEP = 4
-ORIGINAL_RUN_STEPS = {1: 300_000, 2: 180_000, 3: 300_000}
 # paper: minibatches per training round (one round every κ steps) and their size.
 PAPER_UPDATES_PER_ROUND = 64
 PAPER_BATCH_SIZE = 32
+#: paper: Adam's learning rate per use case, chosen by docs/calibration.md's rule 3 (the rate of a
+#: log grid whose greedy policy earns the highest mean Eq. 5 test reward on the learner-calibration
+#: seeds; ``python experiments/choose_learning_rate.py``, 2026-11-25). Table I's rates cannot move
+#: the network within 50·β steps (docs/deviations.md D6); these replace them, whatever the budget.
+PAPER_LEARNING_RATES = {1: 1e-3, 2: 3e-3, 3: 1e-5}
 
 REPLAY_SAMPLING = ("recent", "uniform")
 #: What the network is trained to output: ``"target-vector"``, §III's softmax over actions fitted to
@@ -212,9 +214,8 @@ def get_preset(name: str, use_case: int, *, train_steps: int | None = None) -> L
     * ``paper``: Table I with the original code's schedule compressed into the budget
       (docs/deviations.md D6): a replay memory of 2,500 tuples, a round every κ steps of
       64 Adam updates on 32 tuples drawn from it; ε decays per step and reaches ε_min at the
-      end of training, as in the original runs; the learning rate is Table I's times the ratio
-      of the original runs' Adam updates to ours, so that Adam can move each weight as far as
-      it could in the original runs (Adam's step is about the learning rate).
+      end of training, as in the original runs; the learning rate is
+      :data:`PAPER_LEARNING_RATES`'s, chosen by a rule on calibration seeds (docs/calibration.md).
     * ``tuned``: learning rate 1e-3; ε decays linearly to ε_min within the first half of the
       training rounds the step budget allows; each round trains 2 epochs (batch 64) on the
       most recent 2048 tuples. Everything else as ``paper-literal``.
@@ -223,7 +224,7 @@ def get_preset(name: str, use_case: int, *, train_steps: int | None = None) -> L
         name: "paper", "paper-literal" or "tuned".
         use_case: 1, 2 or 3.
         train_steps: Overrides the training budget (default 50·β); ``paper`` and ``tuned``
-            then recompute their ε decay (and ``paper`` its learning rate) for that budget.
+            then recompute their ε decay for that budget.
 
     Raises:
         ValueError: unknown name or use case (the message lists the valid ones).
@@ -258,12 +259,10 @@ def get_preset(name: str, use_case: int, *, train_steps: int | None = None) -> L
     if name == "paper-literal":
         return literal
     if name == "paper":
-        rounds = max(1, literal.n_training_rounds)
-        original_updates = ORIGINAL_UPDATES_PER_STEP * ORIGINAL_RUN_STEPS[use_case]
         return dataclasses.replace(
             literal,
             name="paper",
-            learning_rate=literal.learning_rate * original_updates / (rounds * PAPER_UPDATES_PER_ROUND),
+            learning_rate=PAPER_LEARNING_RATES[use_case],
             epsilon_decay=(literal.epsilon_start - literal.epsilon_min) / literal.train_steps,
             epsilon_per_step=True,
             replay_capacity=ORIGINAL_REPLAY_TUPLES,
