@@ -49,7 +49,12 @@ from yafs_safetail.cli import (
     positive_float,
     run_cli,
 )
-from yafs_safetail.edge.calibration import TARGET_COMPUTES, CalibrationError, read_calibration
+from yafs_safetail.edge.calibration import (
+    TARGET_COMPUTES,
+    CalibrationError,
+    read_calibration,
+    seed_set,
+)
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.figures import FIGURES_DIR
 from yafs_safetail.figures_multiseed import (
@@ -87,16 +92,17 @@ def _presets(text: str) -> tuple[str, ...]:
 
 
 def _calibration_seed_note(seeds: Sequence[int]) -> str:
-    """A warning when a report seed is one the calibration was fitted on."""
+    """A warning when a report seed is one the world's fit or the learning-rate rule chose on."""
     try:
-        used = set(read_calibration()["provenance"].get("seeds", []))
+        used = (set(read_calibration()["provenance"].get("seeds", []))
+                | set(seed_set("world_calibration")) | set(seed_set("learner_calibration")))
     except CalibrationError:
         return ""
     shared = sorted(used & set(seeds))
     if not shared:
         return " None of these seeds was used by the calibration."
-    return (f" Seeds {shared} were used by the calibration (yafs_safetail/edge/calibration.json): "
-            "on them the calibration-subset numbers are not independent of the fit.")
+    return (f" Seeds {shared} were used by the calibration (yafs_safetail/edge/seed_sets.json): "
+            "on them the numbers are not independent of the fit and the learning-rate rule.")
 
 
 def _learner_diagnostics(folders: Sequence[Path]) -> pd.DataFrame:
@@ -298,6 +304,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     sections: list[str] = []
     section_tables: dict[str, str] = {}
     speedups = []
+    differences: list[str] = []  # how any run's setting departs from the paper's
     summaries: dict[str, dict[int, list[pd.DataFrame]]] = {p: {} for p in args.preset}
     worlds: dict[str, list[feasibility.WorldRun]] = {p: [] for p in args.preset}
     for use_case in args.uc:
@@ -308,6 +315,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             sections += lines
             section_tables.update(tables)
             summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
+            for folder in folders:
+                differences += [d for d in results.setting_differences(
+                    results.read_run_json(folder / results.RUN_FILE)) if d not in differences]
             worlds[preset] += [feasibility.read_world_run(f) for f in folders]
             table = results.aggregate_speedups(folders)
             table.insert(1, "preset", preset)
@@ -320,6 +330,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "file; rerun the command to reproduce it (same seeds, identical summaries).",
         "",
     ]
+    if differences:
+        header += ["**Closeness to the paper: not scored.** These runs are not in the paper's "
+                   f"setting ({'; '.join(differences)}): the scorecard below sets them beside the "
+                   "paper's numbers for information, not as a reproduction.", ""]
     if args.learning_rate is not None:
         header += [f"**Every run trained SafeTail at learning rate {args.learning_rate:g} "
                    "(`--learning-rate`) instead of its preset's: where this report names a "

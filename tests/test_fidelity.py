@@ -87,5 +87,6 @@ def test_access_rate_goal_and_markdown_and_figure(tmp_path):
 def test_run_line_of_a_single_run():
     line = fidelity.run_line(summary(1.0), 1)
     assert "16 of 16" in line and "calibration subset 16 of 16" in line
+    assert "held out" not in line  # use case 1 has no held-out ratio: not "0 of 0"
     other = results.speedup(summary(1.0), "SafeTail", "Rand-1", 50)
     assert math.isclose(other, 1.72)

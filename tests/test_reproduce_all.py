@@ -54,13 +54,14 @@ def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
     assert "Oracle over SafeTail" in report and "SafeTail over Rand-1" in report
     assert "| 0 |" in report and "| 1 |" in report  # one diagnostics row per seed
     assert "### Why our ratios may differ" in report
+    assert "not scored" not in report  # the paper's setting
     # The scorecard: every use-case-1 number of the paper, calibration and held-out apart.
     assert "## Fidelity scorecard — preset `paper`" in report
     assert "the scorecard is meant for five or more" in report
     card = pd.read_csv(out / "fidelity.csv")
     ratios = card[card["kind"] == "ratio"]
     assert len(ratios) == 16 and set(ratios["use_case"]) == {1}
-    assert (ratios["subset"] == "calibration").sum() == 12
+    assert (ratios["subset"] == "calibration").sum() == 16  # all of use case 1's (docs/calibration.md)
     assert ratios["ours"].gt(0).all() and ratios["n_seeds"].eq(2).all()
     assert (card["kind"] == "claim").sum() == 3
     assert (out / "fidelity-paper.png").is_file() and (out / "fidelity-paper.pdf").is_file()
@@ -96,7 +97,10 @@ def test_target_compute_and_learning_rate_reach_every_run(tmp_path: Path) -> Non
     assert run["world"]["name"] == "calibrated" and run["world"]["target_compute"] == "trace_median"
     assert run["learner"]["learning_rate"] == 0.001 and run["learning_rate_override"] == 0.001
     # The report says its runs are not the preset's own.
-    assert "learning rate 0.001 (`--learning-rate`) instead of its preset's" in (out / "REPORT.md").read_text()
+    report = (out / "REPORT.md").read_text()
+    assert "learning rate 0.001 (`--learning-rate`) instead of its preset's" in report
+    # --target-compute changed the preset's world: the report does not score closeness.
+    assert "**Closeness to the paper: not scored.**" in report and "--target-compute" in report
 
 
 def test_a_killed_reproduction_resumes_to_the_same_files_without_recomputing(uncut: Path, tmp_path: Path) -> None:

@@ -9,10 +9,11 @@ miss among them is the world's (or the paper's), not the learner's.
 
 Each statement becomes an interval on SafeTail's q-th percentile latency S_q (seconds):
 
-* **the floor**: no policy beats min(Oracle's latency, the on-device fallback) on any request
-  (a policy's reply is the fastest of its accepting servers, or the fallback when all of them
-  refuse, and Oracle asks every server), so S_q ≥ the q-th percentile of that per-request
-  minimum. Computed from Oracle's test rows in ``requests.csv``.
+* **the floor**: no policy beats Oracle's latency on any request, nor the on-device fallback
+  where some server refused it (a policy's reply is the fastest of its accepting servers, or
+  the fallback when all of them refuse, and Oracle asks every server), so S_q ≥ the q-th
+  percentile of that per-request minimum. Computed from Oracle's test rows in ``requests.csv``
+  (their latency and ``refused``).
 * **a published ratio r** of SafeTail against a method M, counted as reproduced within ±20%
   (``fidelity.TOLERANCE``): ``latency(M) / S_q ∈ [0.8 r, 1.2 r]`` for "SafeTail over M",
   ``S_q / latency(M) ∈ [0.8 r, 1.2 r]`` for "M over SafeTail".
@@ -176,15 +177,27 @@ class Bound:
     strict: bool = False
 
 
-def floor_percentiles(oracle_latency_s: np.ndarray, fallback_latency_s: float) -> dict[int, float]:
-    """Per percentile, the latency no policy can beat: of min(Oracle's, the fallback) per request.
+def floor_percentiles(oracle_latency_s: np.ndarray, fallback_latency_s: float,
+                      fallback_reachable: np.ndarray | None = None) -> dict[int, float]:
+    """Per percentile, the latency no policy can beat: per request, Oracle's latency, or the
+    fallback where that is faster and some server refused the request.
 
-    Every order statistic of a policy's latencies is at least the same order statistic of
-    these minima, so the interpolated percentile is too (numpy's default, as everywhere).
+    A policy meets the fallback only when every server it chose refuses, so only on requests
+    where at least one server refused (Oracle's ``refused`` > 0: it asks every server); on the
+    others the fallback is out of any policy's reach. Every order statistic of a policy's
+    latencies is at least the same order statistic of these minima, so the interpolated
+    percentile is too (numpy's default, as everywhere).
+
+    Args:
+        oracle_latency_s: Oracle's latency per test request.
+        fallback_latency_s: the on-device fallback latency.
+        fallback_reachable: per request, whether some server refused it (None: assume every
+            request, a looser floor).
     """
     if oracle_latency_s.size == 0:
         raise ValueError("no Oracle test rows: the floor needs Oracle's latencies")
-    floor = np.minimum(oracle_latency_s, fallback_latency_s)
+    reachable = np.ones(oracle_latency_s.shape, bool) if fallback_reachable is None else fallback_reachable
+    floor = np.where(reachable, np.minimum(oracle_latency_s, fallback_latency_s), oracle_latency_s)
     return {p: float(np.percentile(floor, p)) for p in PERCENTILES}
 
 
@@ -206,7 +219,8 @@ def read_world_run(folder: str | Path) -> WorldRun:
     requests = read_requests_csv(folder / "requests.csv")
     oracle = requests[(requests["method"] == ORACLE) & (requests["phase"] == "test")]
     try:
-        floor = floor_percentiles(oracle["latency_s"].to_numpy(float), float(fallback))
+        floor = floor_percentiles(oracle["latency_s"].to_numpy(float), float(fallback),
+                                  oracle["refused"].to_numpy() > 0)
     except ValueError as error:
         raise ValueError(f"{folder / 'requests.csv'}: {error}") from None
     return WorldRun(run.use_case, run.seed, read_summary_csv(folder), floor)

@@ -257,8 +257,10 @@ def run_line(summary: pd.DataFrame, use_case: int) -> str:
     c = counts(card)
     if not c["ratios"][1]:
         return "The paper states no ratio this run can be compared with."
+    # Name only the parts this use case has (use case 1's ratios are all calibration numbers).
+    parts = [f"{name} {_share(c[key])}" for key, name in (("calibration", "calibration subset"),
+                                                         ("held-out", "held out")) if c[key][1]]
     return (f"**Closeness to the paper (this run): {_share(c['ratios'])} of the paper's ratios for "
-            f"use case {use_case} within ±{TOLERANCE:.0%}** (calibration subset "
-            f"{_share(c['calibration'])}, held out {_share(c['held-out'])}); claims that hold: "
+            f"use case {use_case} within ±{TOLERANCE:.0%}** ({', '.join(parts)}); claims that hold: "
             f"{_share(c['claims'])}. One seed only: `experiments/reproduce_all.py` gives intervals "
             "over seeds.")
