@@ -36,7 +36,13 @@ def test_fidelity_benchmark_small_budget(tmp_path):
     assert any(line.startswith("ratios_within_20=") and line.endswith("/23") for line in lines)
     assert any(line.startswith("claims_hold=") and line.endswith("/11") for line in lines)
     verdict = next(line for line in lines if line.startswith("goals_met="))
-    assert "uc1_time:no" in verdict  # not the full budget
+    assert [goal.split(":")[0] for goal in verdict.removeprefix("goals_met=").split(",")] == [
+        "ratios", "reachable_claims", "access", "fallback", "uc1_tails", "x1_p95_not_fallback"]
+    assert any(line.startswith("uc1_run_s_at_scale_0.03=") for line in lines)  # not the full budget
+    for name in ("reachable_claims_hold=", "safetail_fallback_max=", "uc1_tails_below_x1_seeds=",
+                 "x1_p95_at_fallback_seeds="):
+        assert any(line.startswith(name) for line in lines), name
+    assert next(line for line in lines if line.startswith("uc1_tails_below_x1_seeds=")).endswith("/2")
     assert any(line.startswith("any_policy_ratios_at_most=") and line.endswith("/23") for line in lines)
     assert any(line.startswith("any_policy_claims_at_most=") for line in lines)
     assert (tmp_path / "fid" / "fidelity.csv").is_file()

@@ -116,3 +116,15 @@ def test_a_bad_calibration_file_is_one_line(tmp_path, content, message):
     with pytest.raises(CalibrationError, match=message) as error:
         world_settings("calibrated", path)
     assert str(path) in str(error.value) and "\n" not in str(error.value)
+
+
+def test_the_first_calibration_stays_the_contention_worlds_default():
+    from yafs_safetail.contention.world import ContentionConfig
+    from yafs_safetail.edge.calibration import CALIBRATED_V1
+
+    first = world_settings("calibrated-v1")
+    assert first == CALIBRATED_V1 and ContentionConfig().world == "calibrated-v1"
+    # The figures of docs/contention.md were measured in this world: its values must not drift.
+    assert (first.load_peak_users, first.bandwidth_share_exponent, first.fallback_compute_multiple,
+            first.nu, first.load_start) == (3.75, 0.0, 8.0, 2, "per_server")
+    assert world_settings("calibrated") != first
