@@ -1,0 +1,152 @@
+"""The golden check: small runs of every kind write the same results files as when the golden
+was recorded (issue 29: a restructure must leave every results file byte-identical).
+
+Each scenario runs an entry point on a small budget and hashes its results files. What
+legitimately differs between two checkouts or two folders is taken out before hashing: the
+run's own command line and output path, the checkout's absolute path, and campaign run ids
+(they hash the code version, which every commit changes). ``run.log``, campaign logs and figures
+are not compared (times, library versions).
+
+When a change is *meant* to change results, rerun with ``YAFS_SAFETAIL_UPDATE_GOLDEN=1`` to
+rewrite ``tests/golden/results.json`` and say why in the commit. TensorFlow's CPU kernels may
+round differently on another processor family; a mismatch in SafeTail's files alone, with every
+baseline's row unchanged, points there (the message lists the files).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+GOLDEN_FILE = REPOSITORY / "tests" / "golden" / "results.json"
+UPDATE = os.environ.get("YAFS_SAFETAIL_UPDATE_GOLDEN") == "1"
+#: Keys of a JSON results file that name where or when it was made, not what it found.
+VOLATILE_KEYS = frozenset({"command", "load_runs", "campaign_run_id", "code_version", "created",
+                           "finished", "wall_s"})
+#: Files never compared: times and library versions.
+SKIPPED_NAMES = frozenset({"run.log", "campaign.log", "campaign.json", ".campaign.lock"})
+SKIPPED_SUFFIXES = frozenset({".png", ".pdf"})
+RUN_ID_SUFFIX = re.compile(r"-[0-9a-f]{12}$")
+
+SCENARIOS: dict[str, list[str]] = {
+    # UC2's budget is the smallest at which SafeTail still trains (κ = 128 of 50·β = 6000 steps).
+    **{f"uc{uc}": ["experiments/run_usecase.py", "--uc", str(uc), "--seed", "0",
+                   "--steps-scale", "0.03", "--no-figures", "--quiet"] for uc in (1, 2, 3)},
+    "sweep": ["experiments/load_sweep.py", "--users", "10", "--loads", "0.3,0.8",
+              "--steps-scale", "0.02", "--methods", "Oracle,MinLoad-1,Tied", "--seed", "3",
+              "--quiet"],
+}
+CAMPAIGN_GRID = """
+[base]
+use_case = 1
+steps_scale = 0.02
+figures = false
+
+[axes]
+preset = ["tuned", "paper-literal"]
+"""
+
+
+def _normalised(path: Path, out: Path) -> bytes:
+    """The bytes of a results file with its place of making taken out."""
+    data = path.read_bytes()
+    if path.suffix in (".json", ".md", ".csv", ".tex"):
+        text = data.decode("utf-8").replace(str(out), "<OUT>").replace(str(REPOSITORY), "<REPO>")
+        if path.suffix == ".json" and path.name != "policy.keras.json":
+            text = json.dumps(_drop_volatile(json.loads(text)), sort_keys=True)
+        data = text.encode("utf-8")
+    return data
+
+
+def _drop_volatile(value: object) -> object:
+    if isinstance(value, dict):
+        return {k: _drop_volatile(v) for k, v in value.items() if k not in VOLATILE_KEYS}
+    if isinstance(value, list):
+        return [_drop_volatile(v) for v in value]
+    return value
+
+
+def _stable_name(relative: Path) -> str:
+    """A results file's path without campaign run ids (``seed0-paper-0f7ed8b61e4c`` ->
+    ``seed0-paper``): a run id hashes the code version, which every commit changes."""
+    parts = [RUN_ID_SUFFIX.sub("", part) for part in relative.parts]
+    return "/".join(parts)
+
+
+def digests(out: Path) -> dict[str, str]:
+    """sha256 of every compared results file under ``out``, by relative path."""
+    found = {}
+    for path in sorted(out.rglob("*")):
+        if not path.is_file() or path.name in SKIPPED_NAMES or path.suffix in SKIPPED_SUFFIXES:
+            continue
+        found[_stable_name(path.relative_to(out))] = hashlib.sha256(_normalised(path, out)).hexdigest()
+    return found
+
+
+def _run(argv: list[str], out: Path) -> None:
+    done = subprocess.run([sys.executable, *argv, "--out", str(out)], capture_output=True,
+                          text=True, cwd=REPOSITORY, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
+def _check(name: str, found: dict[str, str]) -> None:
+    golden = json.loads(GOLDEN_FILE.read_text()) if GOLDEN_FILE.is_file() else {}
+    if UPDATE:
+        golden[name] = found
+        GOLDEN_FILE.parent.mkdir(parents=True, exist_ok=True)
+        GOLDEN_FILE.write_text(json.dumps(golden, indent=1, sort_keys=True) + "\n")
+        return
+    assert name in golden, f"{GOLDEN_FILE}: no golden for {name!r}; record it (module docstring)"
+    expected = golden[name]
+    changed = sorted(k for k in expected.keys() | found.keys() if expected.get(k) != found.get(k))
+    assert not changed, (f"{name}: results files differ from the golden ({GOLDEN_FILE.name}): "
+                         f"{', '.join(changed)}")
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_results_files_match_the_golden(name, tmp_path):
+    out = tmp_path / "out"
+    _run(SCENARIOS[name], out)
+    found = digests(out)
+    assert any(key.endswith(".csv") for key in found)  # something was compared
+    _check(name, found)
+
+
+def test_campaign_results_match_the_golden(tmp_path):
+    grid = tmp_path / "grid.toml"
+    grid.write_text(CAMPAIGN_GRID)
+    out = tmp_path / "campaign"
+    _run(["experiments/campaign.py", "--grid", str(grid), "--workers", "2", "--quiet"], out)
+    found = digests(out)
+    assert sum(key.endswith("requests.csv") for key in found) == 2
+    _check("campaign", found)
+
+
+def test_the_normaliser_keeps_results_and_drops_only_the_place_of_making(tmp_path):
+    out = tmp_path / "x"
+    out.mkdir()
+    (out / "run.json").write_text(json.dumps({"command": f"run --out {out}", "seed": 1,
+                                              "topology": f"{REPOSITORY}/t.json"}))
+    (out / "requests.csv").write_text("a,b\n1,2\n")
+    first = digests(out)
+    (out / "run.json").write_text(json.dumps({"command": "another", "seed": 1,
+                                              "topology": f"{REPOSITORY}/t.json"}))
+    assert digests(out) == first  # the command is not a result
+    (out / "run.json").write_text(json.dumps({"command": "another", "seed": 2,
+                                              "topology": f"{REPOSITORY}/t.json"}))
+    assert digests(out)["run.json"] != first["run.json"]  # the seed is
+    (out / "requests.csv").write_text("a,b\n1,3\n")
+    assert digests(out)["requests.csv"] != first["requests.csv"]
+    (out / "run.log").write_text("12:00 took 3 s")
+    assert "run.log" not in digests(out)
+    (out / "seed0-paper-0f7ed8b61e4c").mkdir()
+    (out / "seed0-paper-0f7ed8b61e4c" / "summary.csv").write_text("m\n")
+    assert "seed0-paper/summary.csv" in digests(out)  # the run id is not a result
