@@ -269,15 +269,6 @@ def _build(folders: Sequence[str | os.PathLike[str]]) -> tuple[SeedSeries, dict[
         }
 
 
-def build_multiseed_figures(folders: Sequence[str | os.PathLike[str]]) -> dict[str, Figure]:
-    """Both figures of a set of run folders (one use case and preset), without writing.
-
-    Returns:
-        ``{"latency": Figure, "servers": Figure}``.
-    """
-    return _build(folders)[1]
-
-
 def draw_multiseed_figures(folders: Sequence[str | os.PathLike[str]],
                            out_dir: str | os.PathLike[str]) -> list[Path]:
     """Draw both figures into ``out_dir`` as PNG and PDF.

@@ -60,11 +60,10 @@ from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, get_preset, scaled_steps
 from yafs_safetail.methods.safetail.reward import reward
 from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, n_actions, subset_of
-from yafs_safetail.record import RequestRecord
+from yafs_safetail.record import PHASES, RequestRecord
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
 
-PHASES = ("train", "test")
 OBSERVATION_KINDS = ("dict", "vector")
 _PER_SERVER = ("server_uplink_bps", "server_downlink_bps", "server_memory_util", "server_cpu_util",
                "server_active_users", "server_median_propagation_s", "server_max_load")
