@@ -114,3 +114,22 @@ def test_fidelity_benchmark_with_failed_runs_ends_without_a_traceback(tmp_path):
     assert "Traceback" not in done.stderr
     assert "run(s) failed" in done.stderr and "fewer than κ = 128" in done.stderr
     assert not (tmp_path / "fid" / "fidelity.csv").exists()
+
+
+def test_first_answer_benchmark_against_a_revision(tmp_path):
+    done = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "bench_first_answer.py"), "--runs", "1",
+         "--only", "help,error", "--against-rev", "HEAD"],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    figures = dict(line.split("=") for line in done.stdout.strip().splitlines())
+    assert set(figures) == {"help_s", "help_reference_s", "help_ratio", "error_s",
+                            "error_reference_s", "error_ratio"}
+    assert all(float(value) > 0 for value in figures.values())
+    worktrees = subprocess.run(["git", "-C", str(REPOSITORY), "worktree", "list"],
+                               capture_output=True, text=True, check=True).stdout
+    assert "bench_first_answer_" not in worktrees  # its own worktree is gone
+    bad = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "bench_first_answer.py"), "--only", "fast"],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=60)
+    assert bad.returncode == 2 and "--only" in bad.stderr
