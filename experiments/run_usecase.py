@@ -69,8 +69,10 @@ def _parser() -> ArgumentParser:
     parser.add_argument("--seed", type=non_negative_int, default=0, help="the run's seed (default 0)")
     parser.add_argument("--out", type=Path, default=None,
                         help="results folder (default results/uc<N>-<preset>-s<seed>, with "
-                             "-lr<rate> after the preset with --learning-rate and -x<scale> at "
-                             "the end with --steps-scale); never replaced unless --overwrite")
+                             "-lr<rate> after the preset with --learning-rate, then "
+                             "-<topology file name> with a --topology other than the paper's, "
+                             "and -x<scale> at the end with --steps-scale); never replaced "
+                             "unless --overwrite")
     parser.add_argument("--force", action="store_true",
                         help="run a budget beyond the limits (10 GB of results or 4 GB of memory)")
     parser.add_argument("--overwrite", action="store_true",
@@ -126,6 +128,29 @@ def _parser() -> ArgumentParser:
     return parser
 
 
+def default_out_dir(args: argparse.Namespace) -> Path:
+    """The results folder of a run without ``--out``.
+
+    ``results/uc<N>-<preset>[-lr<rate>][-<topology>]-s<seed>[-x<scale>]``. The topology is in
+    the name so that a run on another topology does not land in the paper topology's folder
+    and stop at "holds an earlier run"; its file name (without ``.json``) appears only for a
+    topology other than the paper's, so the paper's runs keep the names the docs and tests use.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The folder, relative to the working folder.
+    """
+    scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
+    rate = "" if args.learning_rate is None else f"-lr{args.learning_rate:g}"
+    # Compared as resolved files: the paper's topology given by a relative or linked path is
+    # still the paper's.
+    paper_topology = Path(args.topology).resolve() == DEFAULT_TOPOLOGY.resolve()
+    topology = "" if paper_topology else f"-{Path(args.topology).stem}"
+    return Path("results") / f"uc{args.uc}-{args.preset}{rate}{topology}-s{args.seed}{scale}"
+
+
 def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
     """The run's configuration from the command line (no logging set up)."""
     return _config(_parser().parse_args(argv), argv)
@@ -135,9 +160,7 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
     placement = args.placement
     if placement is None:
         placement = default_placement(args.topology)
-    scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
-    rate = "" if args.learning_rate is None else f"-lr{args.learning_rate:g}"
-    out = args.out or Path("results") / f"uc{args.uc}-{args.preset}{rate}-s{args.seed}{scale}"
+    out = args.out or default_out_dir(args)
     command = shlex.join(["python", "experiments/run_usecase.py", *(sys.argv[1:] if argv is None else argv)])
     return ExperimentConfig(
         use_case=args.uc, preset=args.preset, seed=args.seed, out_dir=out,

@@ -181,17 +181,46 @@ def test_sigkill_leaves_no_orphan_and_the_next_run_clears_its_folder(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
 
 
-def test_the_default_folder_names_preset_seed_and_scale():
+def run_usecase_module():
+    """experiments/run_usecase.py as a module (the experiments folder is not a package)."""
     spec = importlib.util.spec_from_file_location("run_usecase_cli", SCRIPT)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
+    return module
+
+
+def test_the_default_folder_names_preset_seed_and_scale():
+    module = run_usecase_module()
     assert module.parse_args(["--uc", "2", "--seed", "3"]).out_dir == Path("results/uc2-paper-s3")
     quick = module.parse_args(["--uc", "1", "--preset", "tuned", "--steps-scale", "0.1"])
     assert quick.out_dir == Path("results/uc1-tuned-s0-x0.1")
     faster = module.parse_args(["--uc", "1", "--learning-rate", "1e-3", "--steps-scale", "0.1"])
     assert faster.out_dir == Path("results/uc1-paper-lr0.001-s0-x0.1")
     assert faster.learning_rate == 1e-3
+
+
+def test_the_default_folder_names_a_topology_other_than_the_papers(tmp_path, monkeypatch):
+    module = run_usecase_module()
+    topologies = REPOSITORY / "topologies"
+    three = module.parse_args(["--uc", "1", "--topology", str(topologies / "3servers.json")])
+    assert three.out_dir == Path("results/uc1-paper-3servers-s0")
+    every_part = module.parse_args(["--uc", "2", "--preset", "tuned", "--learning-rate", "1e-3", "--seed", "4",
+                                    "--steps-scale", "0.1", "--topology", str(topologies / "7servers.json")])
+    assert every_part.out_dir == Path("results/uc2-tuned-lr0.001-7servers-s4-x0.1")
+    # The paper's topology keeps the paper's name, however it is given: relative to the
+    # project, or through a link.
+    monkeypatch.chdir(REPOSITORY)
+    relative = module.parse_args(["--uc", "1", "--topology", "topologies/paper_5servers.json"])
+    assert relative.out_dir == Path("results/uc1-paper-s0")
+    link = tmp_path / "mine.json"
+    link.symlink_to(topologies / "paper_5servers.json")
+    assert module.parse_args(["--uc", "1", "--topology", str(link)]).out_dir == Path("results/uc1-paper-s0")
+    # A copy elsewhere is another file: it may be edited, so its runs get their own folder.
+    copy = tmp_path / "paper_5servers.json"
+    copy.write_bytes((topologies / "paper_5servers.json").read_bytes())
+    assert (module.parse_args(["--uc", "1", "--topology", str(copy), "--placement", str(copy)]).out_dir
+            == Path("results/uc1-paper-paper_5servers-s0"))
 
 
 @pytest.mark.parametrize(("args", "fragments"), [
