@@ -36,6 +36,7 @@ from yafs_safetail.cli import (
 from yafs_safetail.edge.calibration import TARGET_COMPUTES
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.edge.scenario import default_placement
+from yafs_safetail.edge.topology_io import ScenarioError
 from yafs_safetail.logs import is_terminal
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
@@ -160,6 +161,13 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
     placement = args.placement
     if placement is None:
         placement = default_placement(args.topology)
+        if not placement.is_file() and Path(args.topology).is_file():
+            # The loader's own "not found" names a file the user never gave: say where the
+            # name came from and what to pass instead. (A missing topology is the loader's to
+            # report first: the placement's name is derived from it.)
+            raise ScenarioError(str(placement), "file",
+                                f"placement file not found, the default for --topology {args.topology}; "
+                                "pass --placement with the placement JSON of that topology")
     out = args.out or default_out_dir(args)
     command = shlex.join(["python", "experiments/run_usecase.py", *(sys.argv[1:] if argv is None else argv)])
     return ExperimentConfig(

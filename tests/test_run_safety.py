@@ -215,7 +215,9 @@ def test_the_default_folder_names_a_topology_other_than_the_papers(tmp_path, mon
     assert relative.out_dir == Path("results/uc1-paper-s0")
     link = tmp_path / "mine.json"
     link.symlink_to(topologies / "paper_5servers.json")
-    assert module.parse_args(["--uc", "1", "--topology", str(link)]).out_dir == Path("results/uc1-paper-s0")
+    placement = str(REPOSITORY / "placements" / "paper_5servers.json")
+    assert (module.parse_args(["--uc", "1", "--topology", str(link), "--placement", placement]).out_dir
+            == Path("results/uc1-paper-s0"))
     # A copy elsewhere is another file: it may be edited, so its runs get their own folder.
     copy = tmp_path / "paper_5servers.json"
     copy.write_bytes((topologies / "paper_5servers.json").read_bytes())

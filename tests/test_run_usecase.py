@@ -258,8 +258,17 @@ def test_topology_with_an_unknown_condition(tmp_path):
 
 def test_missing_topology_and_default_placement(tmp_path):
     done = run_script("--uc", "1", "--topology", tmp_path / "nowhere.json", "--out", tmp_path / "run")
-    assert_one_error_line(done, "nowhere.json")
+    assert_one_error_line(done, f"{tmp_path / 'nowhere.json'}: file: topology file not found")
     assert not (tmp_path / "run").exists()
+
+
+def test_a_topology_without_a_placement_asks_for_one(tmp_path):
+    topology = tmp_path / "mine.json"
+    topology.write_bytes((REPOSITORY / "topologies" / "3servers.json").read_bytes())
+    done = run_script("--uc", "1", "--topology", topology, "--out", tmp_path / "run")
+    assert_one_error_line(done, str(REPOSITORY / "placements" / "mine.json"), "placement file not found",
+                          f"--topology {topology}", "pass --placement")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.json"]
 
 
 def test_output_whose_parent_is_a_file(tmp_path):
