@@ -43,7 +43,7 @@ def test_debug_env_shows_the_real_exception(monkeypatch: pytest.MonkeyPatch) -> 
 def test_console_command_lists_and_dispatches(capsys: pytest.CaptureFixture[str]) -> None:
     from yafs_safetail.cli import main
 
-    assert main([]) == 0
+    assert main(["--help"]) == 0
     listing = capsys.readouterr().out
     assert all(f"  {name}" in listing for name in ("run", "reproduce", "calibrate", "figures"))
     with pytest.raises(SystemExit) as done:  # argparse's own --help exit, from run_usecase.py
@@ -53,6 +53,58 @@ def test_console_command_lists_and_dispatches(capsys: pytest.CaptureFixture[str]
     assert capsys.readouterr().err.startswith("error: unknown command 'bogus'")
     assert main(["figures", "/nonexistent/run"]) == EXIT_BAD_INPUT
     assert capsys.readouterr().err == "error: /nonexistent/run: results folder not found\n"
+
+
+COMMANDS = ("run", "reproduce", "calibrate", "compare", "sweep", "figures")
+
+
+def test_no_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    from yafs_safetail.cli import main
+
+    assert main([]) == EXIT_BAD_INPUT  # argparse's code for a usage error, as a wrong command
+    out, err = capsys.readouterr()
+    assert out == ""  # a usage error: the listing goes to stderr, with the error
+    lines = err.splitlines()
+    assert lines[0].startswith("usage: yafs-safetail ")
+    assert all(any(line.startswith(f"  {name} ") for line in lines) for name in COMMANDS)
+    assert lines[-1].startswith("error: no command given")
+    assert sum(line.startswith("error:") for line in lines) == 1
+    assert main(["-h"]) == 0 and capsys.readouterr().out.startswith("usage: yafs-safetail ")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_each_command_names_itself_in_its_help(capsys: pytest.CaptureFixture[str], command: str) -> None:
+    from yafs_safetail.cli import main
+
+    with pytest.raises(SystemExit) as done:  # argparse's own --help exit
+        main([command, "--help"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: yafs-safetail {command} ")
+
+
+def test_scripts_run_directly_keep_their_own_name(capsys: pytest.CaptureFixture[str]) -> None:
+    import subprocess
+    import sys
+
+    from yafs_safetail.cli import main
+    from yafs_safetail.edge.scenario import REPOSITORY
+    from yafs_safetail.figures import main as figures_main
+
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])  # the console command's name must not stay behind it
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        figures_main(["--help"])
+    assert capsys.readouterr().out.startswith("usage: python -m yafs_safetail.figures ")
+    script = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "load_sweep.py"), "--help"],
+                            capture_output=True, text=True, timeout=300)
+    assert script.returncode == 0 and script.stdout.startswith("usage: load_sweep.py "), script.stderr
+    # ``python -m yafs_safetail.cli`` is the console command too.
+    module = subprocess.run([sys.executable, "-m", "yafs_safetail.cli", "compare", "--help"],
+                            capture_output=True, text=True, timeout=300)
+    assert module.returncode == 0 and module.stdout.startswith("usage: yafs-safetail compare "), module.stderr
+    bare = subprocess.run([sys.executable, "-m", "yafs_safetail.cli"], capture_output=True, text=True, timeout=300)
+    assert bare.returncode == EXIT_BAD_INPUT and bare.stdout == "" and "Traceback" not in bare.stderr
 
 
 def test_sigterm_becomes_a_clean_exit(capsys: pytest.CaptureFixture[str]) -> None:

@@ -15,8 +15,9 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
+from contextvars import ContextVar
 from types import FrameType
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from yafs_safetail.logs import configure_logging, verbosity_level
 
@@ -37,9 +38,25 @@ class UsageError(ValueError):
     """A bad command-line argument (argparse's own message, reported as one line)."""
 
 
+#: The name of the console subcommand being run (``yafs-safetail run``), set by :func:`main`
+#: while it runs; None when a script is run directly.
+_command_prog: ContextVar[str | None] = ContextVar("yafs_safetail_command_prog", default=None)
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse that reports bad arguments as :func:`run_cli`'s one-line error (exit 2, no
-    usage dump), for every entry point."""
+    usage dump), for every entry point.
+
+    Run as a ``yafs-safetail`` subcommand, the parser's usage and help show that command
+    (``yafs-safetail run``) instead of the script's own ``prog``, since that is what the user
+    typed; run directly, a script keeps its own name.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        command = _command_prog.get()
+        if command is not None:
+            self.prog = command
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(message)
@@ -228,30 +245,58 @@ def _with_verbosity_options(
     return main
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``yafs-safetail COMMAND [options]``: one console command for the project's tools."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    if not args or args[0] in ("-h", "--help"):
-        print(USAGE)
-        for name, (script, what) in SCRIPT_COMMANDS.items():
-            print(f"  {name:<10} {what} ({script})")
-        print(f"  {'figures':<10} redraw a results folder's figures (python -m yafs_safetail.figures)")
-        return 0
-    command, rest = args[0], args[1:]
-    if command == "figures":
-        from yafs_safetail.figures import main as figures_main
+def _listing() -> str:
+    """The usage line and one line per subcommand."""
+    lines = [USAGE]
+    lines += [f"  {name:<10} {what} ({script})" for name, (script, what) in SCRIPT_COMMANDS.items()]
+    lines.append(f"  {'figures':<10} redraw a results folder's figures (python -m yafs_safetail.figures)")
+    return "\n".join(lines) + "\n"
 
-        return run_cli(_with_verbosity_options(figures_main), rest)
-    if command not in SCRIPT_COMMANDS:
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``yafs-safetail COMMAND [options]``: one console command for the project's tools.
+
+    Args:
+        argv: the arguments (``None``: ``sys.argv[1:]``).
+
+    Returns:
+        The process exit code: 0 for ``--help``, 2 (a usage error, as argparse has it) without
+        a command or with an unknown one, otherwise the command's own.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args[:1] in (["-h"], ["--help"]):
+        print(_listing(), end="")
+        return 0
+    if not args:
+        # Nothing asked is a usage error, not a success: a script calling the command without
+        # its arguments must not go on as if it had run. The listing goes to stderr, with the
+        # error, so that stdout stays empty.
+        print(_listing() + "error: no command given; each command takes --help", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    command, rest = args[0], args[1:]
+    if command != "figures" and command not in SCRIPT_COMMANDS:
         print(f"error: unknown command {command!r}; {USAGE}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    # Every parser the command builds shows "yafs-safetail COMMAND" as its prog (ArgumentParser).
+    token = _command_prog.set(f"yafs-safetail {command}")
     try:
-        command_main = _script_main(SCRIPT_COMMANDS[command][0])
-    except OSError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    return run_cli(command_main, rest)
+        if command == "figures":
+            from yafs_safetail.figures import main as figures_main
+
+            return run_cli(_with_verbosity_options(figures_main), rest)
+        try:
+            command_main = _script_main(SCRIPT_COMMANDS[command][0])
+        except OSError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        return run_cli(command_main, rest)
+    finally:
+        _command_prog.reset(token)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # ``python -m yafs_safetail.cli`` runs this file as __main__, a second copy of the module:
+    # the package's copy, the one the scripts' parsers read the command name from, must run.
+    from yafs_safetail.cli import main as package_main
+
+    sys.exit(package_main())

@@ -22,7 +22,6 @@ deleted figure behind.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -38,7 +37,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from yafs_safetail import results
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import ArgumentParser, run_cli
 from yafs_safetail.results import ResultsFileError, RunMetadata
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 
@@ -281,7 +280,7 @@ def draw_figures(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m yafs_safetail.figures DIR``: redraw every figure of a results folder."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m yafs_safetail.figures",
         description="Redraw the paper's Figs. 5-7 (a)-(g) from a results folder "
                     "(requests.csv and run.json) into DIR/figures as PNG and PDF.",
