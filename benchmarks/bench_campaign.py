@@ -7,7 +7,7 @@ runs, and for Ray the runtime's start and shutdown. Printed: wall time per confi
 speed-up of 2 workers over 1 per engine, Ray's overhead against the local engine at the same
 worker count, and whether every configuration wrote byte-identical run folders.
 
-Goal (issue 14): 2 workers >= 1.8x one worker; Ray's wall time <= 1.10x the local engine's.
+Goal: 2 workers >= 1.8x one worker; Ray's wall time <= 1.10x the local engine's.
 
 Usage::
 

@@ -1,4 +1,4 @@
-"""How close the default preset comes to the paper, on seeds no choice used (issue 28's goals).
+"""How close the default preset comes to the paper, on seeds no choice used, goal by goal.
 
 Runs ``experiments/reproduce_all.py`` for the three use cases with the given preset (default
 ``paper``, what ``run_usecase.py`` runs without options) and seeds (default: the held-out set of

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from yafs_safetail.cli import EXIT_BAD_INPUT, run_cli
+from yafs_safetail.edge.scenario import REPOSITORY
 
 
 def test_value_error_becomes_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
@@ -87,7 +90,6 @@ def test_scripts_run_directly_keep_their_own_name(capsys: pytest.CaptureFixture[
     import sys
 
     from yafs_safetail.cli import main
-    from yafs_safetail.edge.scenario import REPOSITORY
     from yafs_safetail.figures import main as figures_main
 
     with pytest.raises(SystemExit):
@@ -105,6 +107,24 @@ def test_scripts_run_directly_keep_their_own_name(capsys: pytest.CaptureFixture[
     assert module.returncode == 0 and module.stdout.startswith("usage: yafs-safetail compare "), module.stderr
     bare = subprocess.run([sys.executable, "-m", "yafs_safetail.cli"], capture_output=True, text=True, timeout=300)
     assert bare.returncode == EXIT_BAD_INPUT and bare.stdout == "" and "Traceback" not in bare.stderr
+
+
+ENTRY_POINTS = sorted(str(path.relative_to(REPOSITORY)) for folder in ("experiments", "benchmarks")
+                      for path in (REPOSITORY / folder).glob("*.py"))
+#: What a user cannot look up: an issue number of the project's tracker, or a file that is
+#: not in the project.
+UNKNOWN_REFERENCE = re.compile(r"\bissues?\s*#?\d+|facts\.md", re.IGNORECASE)
+
+
+@pytest.mark.parametrize("script", ENTRY_POINTS)
+def test_help_texts_refer_only_to_what_a_user_can_read(script: str) -> None:
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, str(REPOSITORY / script), "--help"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert not UNKNOWN_REFERENCE.findall(done.stdout), done.stdout
 
 
 def test_sigterm_becomes_a_clean_exit(capsys: pytest.CaptureFixture[str]) -> None:

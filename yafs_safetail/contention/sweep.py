@@ -271,7 +271,7 @@ def best_fixed_p99(frame: pd.DataFrame, load: float) -> tuple[str, float]:
 
 
 def sweep_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
-    """The issue's goals, each as (claim, holds, measured) — computed, never asserted."""
+    """The sweep's goals, each as (claim, holds, measured) — computed, never asserted."""
     loads = sorted(frame["load"].unique())
     checks: list[tuple[str, bool, str]] = []
 
