@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -291,6 +292,15 @@ def test_summary_warns_when_percentiles_rest_on_too_few_requests(tmp_path):
 
 # ---------------------------------------------------------------------------- markdown
 
+def assert_cites_only_what_a_reader_has(text: str) -> None:
+    """The paper's numbers are cited to the paper and to docs of the project, never to a file
+    the project does not ship."""
+    assert "facts.md" not in text
+    assert "Section V of the paper; see docs/results.md" in text
+    cited = re.findall(r"\b[\w./-]+\.md\b", text)
+    assert cited and all((REPOSITORY / name).is_file() for name in cited), cited
+
+
 def test_summary_markdown_contents(tmp_path):
     write_run_folder(tmp_path, np.random.default_rng(7))
     text = (tmp_path / "summary.md").read_text()
@@ -306,6 +316,7 @@ def test_summary_markdown_contents(tmp_path):
     assert "| SafeTail over Rand-2 |" in text and "MinProp-3" in text
     assert "ours" in text and "paper" in text
     assert "## The paper's qualitative statements" in text
+    assert_cites_only_what_a_reader_has(text)
 
 
 def test_markdown_without_run_or_safetail():
@@ -392,6 +403,7 @@ def test_aggregate_across_seeds(tmp_path):
     assert "| 1 | Oracle over SafeTail | median |" in text
     assert "differs?" in text
     assert "Rand-2" not in text  # the paper states no Rand-2 number for use case 1
+    assert_cites_only_what_a_reader_has(text)
 
 
 def test_aggregate_rejects_mixed_use_cases(tmp_path):

@@ -34,6 +34,10 @@ from yafs_safetail.results.paper import (
 )
 from yafs_safetail.results.stats import summarize
 
+#: Where a reader finds the paper's stated numbers and how they are read, as results files
+#: cite it: the paper itself and a file of the project (every reader has both).
+PAPER_SOURCE = "Section V of the paper; see docs/results.md"
+
 # --------------------------------------------------------------------------------------------
 # Markdown
 
@@ -177,7 +181,7 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
         lines.append("Not available: the run lacks SafeTail or baseline test rows.")
     stated = _stated_lines(table)
     if stated:
-        lines += ["", "The paper's statements behind the \"paper\" columns (facts.md):", "",
+        lines += ["", f"The paper's statements behind the \"paper\" columns ({PAPER_SOURCE}):", "",
                   *stated]
     if use_case is not None:
         claims = check_claims(summary, use_case)
@@ -245,7 +249,7 @@ AGGREGATE_NOTE = "Test phase; mean over seeds [95% bootstrap interval over seeds
 COMPARISON_NOTE = (
     "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
     "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
-    "direction (facts.md)."
+    f"direction ({PAPER_SOURCE})."
 )
 
 
