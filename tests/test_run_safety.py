@@ -456,3 +456,42 @@ def test_sigkill_at_random_points_never_loses_the_earlier_run(tmp_path):
     assert done.returncode == 0, done.stderr
     assert is_results_folder(target) and snapshot(target) != kept
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run", "timing"]
+
+
+@pytest.fixture
+def umask_027():
+    """A umask other than the usual 022 (group may read, others nothing), restored after."""
+    previous = os.umask(0o027)
+    yield
+    os.umask(previous)
+
+
+def modes(folder: Path) -> dict[str, int]:
+    """Permission bits of ``folder`` and of everything in it, by relative path."""
+    return {str(p.relative_to(folder)): p.stat().st_mode & 0o777 for p in [folder, *folder.rglob("*")]}
+
+
+def test_a_published_folder_has_the_umasks_permissions_and_staging_stays_private(tmp_path, umask_027):
+    from yafs_safetail.runs import output
+
+    staged = output.StagedOutput(tmp_path / "run")
+    with staged as staging:
+        assert staging.stat().st_mode & 0o777 == 0o700  # nobody else reads a run being written
+        (staging / "run.json").write_text("{}")
+        staged.publish()
+    assert modes(tmp_path / "run") == {".": 0o750, "run.json": 0o640}
+
+
+def test_a_run_in_a_shared_place_is_readable_by_others(tmp_path):
+    out = tmp_path / "run"
+    env = {k: v for k, v in os.environ.items() if k != "YAFS_SAFETAIL_DEBUG"}
+    done = subprocess.run([sys.executable, str(SCRIPT), "--uc", "1", "--out", str(out), "--steps-scale", "0.02",
+                           "--redundancy", "1", "--yafs-csv", "--quiet"],
+                          cwd=REPOSITORY, env=env, capture_output=True, text=True, timeout=600, umask=0o022)
+    assert done.returncode == 0, done.stderr
+    found = modes(out)
+    assert {"policy.keras", "policy.keras.json", "summary.md", "figures", "yafs"} <= set(found)
+    folders = {name for name in found if (out / name).is_dir()}
+    assert {name: found[name] for name in folders} == dict.fromkeys(folders, 0o755)
+    assert {name: found[name] for name in set(found) - folders} == dict.fromkeys(set(found) - folders, 0o644)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no lock, staging or checkpoint left

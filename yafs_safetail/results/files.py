@@ -93,11 +93,21 @@ class ResultsFileError(ValueError):
 # Atomic, deterministic writing
 
 
-def file_mode() -> int:
-    """Permission bits an ordinary ``open(..., "w")`` would give (temporary files get 0600)."""
+def _umask() -> int:
+    # The only way to read the umask is to set it; it is put back at once.
     umask = os.umask(0)
     os.umask(umask)
-    return 0o666 & ~umask
+    return umask
+
+
+def file_mode() -> int:
+    """Permission bits an ordinary ``open(..., "w")`` would give (temporary files get 0600)."""
+    return 0o666 & ~_umask()
+
+
+def folder_mode() -> int:
+    """Permission bits an ordinary ``mkdir`` would give (``tempfile.mkdtemp`` gives 0700)."""
+    return 0o777 & ~_umask()
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:

@@ -30,6 +30,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from yafs_safetail.edge.scenario import REPOSITORY
+from yafs_safetail.results.files import folder_mode
 
 RUN_FILE = "run.json"
 REQUESTS_FILE = "requests.csv"
@@ -217,6 +218,10 @@ class StagedOutput:
             (previous / PREVIOUS_MARKER).touch()
             os.replace(target, previous / target.name)
         (self.staging / STAGING_MARKER).unlink()
+        # mkdtemp made the staging folder private (0700) while it was being written; the
+        # results folder gets what an ordinary mkdir would give, so that colleagues sharing
+        # it can read it. Set before the rename: the folder never appears private.
+        os.chmod(self.staging, folder_mode())
         os.replace(self.staging, target)
         self.staging = None
         if previous is not None:

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+import shutil
 import tempfile
 import zipfile
 from pathlib import Path
@@ -60,6 +61,9 @@ def _make_reproducible(path: Path) -> None:
     except BaseException:
         staging.unlink(missing_ok=True)  # the temporary file made just above
         raise
+    # mkstemp made the rewrite private (0600); the policy keeps the mode Keras's ordinary
+    # write gave it (the umask's), so that a shared results folder's policy is readable.
+    shutil.copymode(path, staging)
     os.replace(staging, path)
 
 
