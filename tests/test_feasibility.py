@@ -206,28 +206,17 @@ def test_the_fewest_statements_to_give_up():
        fallback_s=st.floats(0.1, 5.0))
 def test_no_policy_beats_the_floor(seed, n, fallback_s):
     # A policy's reply is one of its servers' (never faster than Oracle's, which asks them all)
-    # or the fallback when all of its servers refuse.
-    rng = np.random.default_rng(seed)
-    oracle_s = rng.exponential(1.0, n)
-    refused = rng.random(n) < 0.2
-    policy_s = np.where(refused, fallback_s, oracle_s + rng.exponential(0.5, n))
-    floor = feasibility.floor_percentiles(oracle_s, fallback_s)
-    for p in PERCENTILES:
-        assert np.percentile(policy_s, p) >= floor[p] - 1e-12
-
-
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 300),
-       fallback_s=st.floats(0.1, 5.0))
-def test_the_floor_counts_the_fallback_only_where_a_server_refused(seed, n, fallback_s):
-    # A policy meets the fallback only when all its servers refuse, so only where some did.
+    # or the fallback when all of its servers refuse, so only where some server refused.
     rng = np.random.default_rng(seed)
     oracle_s = rng.exponential(1.0, n)
     some_refused = rng.random(n) < 0.2
     choose_refusing = rng.random(n) < 0.5
     policy_s = np.where(some_refused & choose_refusing, fallback_s, oracle_s + rng.exponential(0.5, n))
     floor = feasibility.floor_percentiles(oracle_s, fallback_s, some_refused)
+    looser = feasibility.floor_percentiles(oracle_s, fallback_s)  # the fallback counted everywhere
     for p in PERCENTILES:
         assert np.percentile(policy_s, p) >= floor[p] - 1e-12
+        assert floor[p] >= looser[p]
     # No server ever refused: the floor is Oracle's, however fast the fallback.
     nothing = feasibility.floor_percentiles(oracle_s, 0.0, np.zeros(n, bool))
     assert nothing == {p: float(np.percentile(oracle_s, p)) for p in PERCENTILES}
