@@ -25,6 +25,7 @@ from yafs_safetail.cli import (
     configure_verbosity,
     int_list,
     positive_float,
+    positive_float_list,
     positive_int,
     run_cli,
 )
@@ -45,6 +46,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--uc", type=int_list, default=USE_CASES, help="use cases (default 1,2,3)")
     parser.add_argument("--seeds", type=int_list, default=None,
                         help="learner-calibration seeds (default: seed_sets.json's, 1000-1002)")
+    parser.add_argument("--rates", type=positive_float_list, default=RATE_GRID,
+                        help="the candidate rates (default the rule's grid: "
+                             + ",".join(f"{r:g}" for r in RATE_GRID) + "; another grid is not the rule)")
     parser.add_argument("--steps-scale", type=positive_float, default=1.0,
                         help="fraction of the full budget (default 1: the rule as written)")
     parser.add_argument("--workers", type=positive_int, default=2, help="parallel runs (default 2)")
@@ -60,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                           *(sys.argv[1:] if argv is None else argv)])
     seeds = tuple(seed_set("learner_calibration") if args.seeds is None else args.seeds)
     document = choose_learning_rates(LearningRateConfig(
-        use_cases=tuple(args.uc), rates=RATE_GRID, seeds=seeds, steps_scale=args.steps_scale,
+        use_cases=tuple(args.uc), rates=tuple(args.rates), seeds=seeds, steps_scale=args.steps_scale,
         workers=args.workers, out_dir=args.out, command=command))
     for line in main_rows(document):
         print(line)

@@ -115,6 +115,17 @@ def int_list(text: str) -> tuple[int, ...]:
     return values
 
 
+def positive_float_list(text: str) -> tuple[float, ...]:
+    """An argparse type: distinct positive numbers, comma-separated, returned ascending."""
+    try:
+        values = tuple(positive_float(part) for part in text.split(","))
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated positive numbers, got {text!r}") from None
+    if len(set(values)) != len(values):
+        raise argparse.ArgumentTypeError(f"expected distinct numbers, got {text!r}")
+    return tuple(sorted(values))
+
+
 def load_list(text: str) -> tuple[float, ...]:
     """An argparse type: distinct offered loads in (0, 10), comma-separated, returned ascending."""
     try:
