@@ -643,6 +643,7 @@ def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch)
     assert recorder.targets == {r: pytest.approx(world.target_s(r)) for r in range(3000)}
 
 
+@pytest.mark.slow  # several seeds of the sweep; test_load_sweep_small_budget runs the entry point
 def test_load_sweep_over_seeds(tmp_path):
     common = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.2,0.8", "--steps-scale", "0.02",
               "--methods", "MinLoad-1,Tied"]

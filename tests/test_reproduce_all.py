@@ -103,6 +103,7 @@ def test_target_compute_and_learning_rate_reach_every_run(tmp_path: Path) -> Non
     assert "**Closeness to the paper: not scored.**" in report and "--target-compute" in report
 
 
+@pytest.mark.slow  # a whole reproduction killed and resumed; the others run the entry point
 def test_a_killed_reproduction_resumes_to_the_same_files_without_recomputing(uncut: Path, tmp_path: Path) -> None:
     out = tmp_path / "rep"
     args = [sys.executable, str(SCRIPT), *TINY_ARGS, "--workers", "1", "--out", str(out)]

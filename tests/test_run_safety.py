@@ -428,6 +428,7 @@ def test_discarding_a_checkpoint_removes_only_the_tools_files(tmp_path):
     assert not folder.exists()  # nothing else inside: the folder goes too
 
 
+@pytest.mark.slow  # many kills at random moments; test_sigkill_leaves_no_orphan... runs one
 def test_sigkill_at_random_points_never_loses_the_earlier_run(tmp_path):
     # Fault injection: a run replacing an earlier one (--overwrite) is killed outright at
     # seeded random moments from start-up to the end. Whatever the moment, the target holds
