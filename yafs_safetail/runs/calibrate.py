@@ -63,7 +63,7 @@ from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_wor
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, make_baseline
 from yafs_safetail.results.files import PERCENTILES
 from yafs_safetail.results.paper import CALIBRATION_RATIOS, PaperRatio, paper_speedup
-from yafs_safetail.runs.workers import method_rng
+from yafs_safetail.runs.workers import end_with_parent, method_rng
 
 #: The single-server baselines whose latency over Oracle's the fit matches.
 X1_BASELINES = ("Rand-1", "MinLoad-1", "MinProp-1")
@@ -334,7 +334,9 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
             evaluations += _score_chunk([candidates[i] for i in chunk], config.seeds)
     else:
         context = multiprocessing.get_context("spawn")
-        with concurrent.futures.ProcessPoolExecutor(config.workers, mp_context=context) as pool:
+        # end_with_parent: a killed calibration leaves no worker process behind.
+        with concurrent.futures.ProcessPoolExecutor(config.workers, mp_context=context,
+                                                    initializer=end_with_parent) as pool:
             futures = [pool.submit(_score_chunk, [candidates[i] for i in chunk], config.seeds)
                        for chunk in chunks]
             for done, future in enumerate(futures, 1):

@@ -28,6 +28,7 @@ import yafs_safetail
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import seed_set
 from yafs_safetail.methods.registry import SAFETAIL
+from yafs_safetail.runs.workers import end_with_parent
 
 #: The candidate rates, smallest first (a log grid around Adam's usual 1e-3).
 RATE_GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -105,7 +106,9 @@ def choose_learning_rates(config: LearningRateConfig,
     started = time.perf_counter()
     jobs = [(uc, rate, seed) for uc in config.use_cases for rate in config.rates for seed in config.seeds]
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(config.workers, mp_context=context) as pool:
+    # end_with_parent: a killed calibration leaves no worker process behind.
+    with concurrent.futures.ProcessPoolExecutor(config.workers, mp_context=context,
+                                                initializer=end_with_parent) as pool:
         futures = [pool.submit(test_reward, uc, rate, seed, config.steps_scale) for uc, rate, seed in jobs]
         rows = []
         for (uc, rate, seed), future in zip(jobs, futures, strict=True):
