@@ -16,6 +16,7 @@ from yafs_safetail import results
 from yafs_safetail.results import (
     ResultsFileError,
 )
+from yafs_safetail.results import claims as claim_checks
 from yafs_safetail.results import paper as paper_results
 from yafs_safetail.runs.experiment import REPOSITORY
 
@@ -215,7 +216,7 @@ def test_every_claim_has_a_check_and_a_unique_key():
         assert claims["key"].is_unique
         assert all(h in (True, False) for h in claims["holds"]), use_case
     with pytest.raises(KeyError, match="no check"):
-        paper_results._claim_holds("not_a_claim", everything)
+        claim_checks._claim_holds("not_a_claim", everything)
 
 
 # ---------------------------------------------------------------------------- the paper's setting

@@ -22,6 +22,7 @@ from yafs_safetail.methods.registry import (
     sort_methods,
 )
 from yafs_safetail.record import PHASES, REQUESTS_COLUMNS, REQUESTS_SCHEMA
+from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.files import (
     FLOAT_FORMAT,
     LEARNING_RATE_OVERRIDE_KEY,
@@ -62,7 +63,6 @@ from yafs_safetail.results.paper import (
     PaperClaim,
     PaperRatio,
     aggregate_speedups,
-    check_claims,
     in_calibration_subset,
     paper_speedup,
     paper_statement,

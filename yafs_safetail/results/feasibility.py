@@ -165,7 +165,7 @@ class Bound:
         kind: ``floor``, ``ratio`` or ``claim``.
         key: the claim's key (``paper.PAPER_CLAIMS``); the statement for the others.
         strict: the end it sets is excluded (the claims: "below", "faster" as
-            ``paper.check_claims`` tests them); the floor and the ±20% ratios include theirs.
+            ``claims.check_claims`` tests them); the floor and the ±20% ratios include theirs.
     """
 
     percentile: int

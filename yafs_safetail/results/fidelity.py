@@ -21,11 +21,11 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.methods.registry import SAFETAIL
+from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.paper import (
     PAPER_CLAIMS,
     PAPER_RATIOS,
     PERCENTILE_NAMES,
-    check_claims,
     in_calibration_subset,
 )
 from yafs_safetail.results.report import frame_markdown

@@ -11,6 +11,7 @@ from pathlib import Path
 import pandas as pd
 
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, sort_methods
+from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.files import (
     MIN_REQUESTS_BEYOND_PERCENTILE,
     PERCENTILES,
@@ -28,7 +29,6 @@ from yafs_safetail.results.files import (
 )
 from yafs_safetail.results.paper import (
     PERCENTILE_NAMES,
-    check_claims,
     setting_differences,
     speedup_table,
 )
