@@ -133,3 +133,16 @@ def test_first_answer_benchmark_against_a_revision(tmp_path):
         [sys.executable, str(REPOSITORY / "benchmarks" / "bench_first_answer.py"), "--only", "fast"],
         capture_output=True, text=True, cwd=REPOSITORY, timeout=60)
     assert bad.returncode == 2 and "--only" in bad.stderr
+
+
+def test_target_headroom_benchmark_small_budget():
+    done = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "bench_target_headroom.py"),
+         "--seeds", "1000", "--steps", "300"],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    verdicts = [line for line in done.stdout.splitlines() if "_implied " in line]
+    assert [line.split("_")[0] for line in verdicts] == ["uc1", "uc2", "uc3"]
+    # UC3's bound is facts.md's "Oracle faster by 1.50x at the median", read by the script.
+    assert "p50>=1.50" in verdicts[2] and "p90>=1.14" in verdicts[2]
+    assert all(line.rsplit("reachable=", 1)[1] in ("yes", "no") for line in verdicts)
