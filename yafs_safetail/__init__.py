@@ -1,13 +1,62 @@
 """yafs-safetail: SafeTail learned redundant edge dispatch on a YAFS-compatible simulator.
 
-Importing the package registers the Gymnasium environment ``yafs_safetail/SafeTail-v0``
-(``yafs_safetail.sim.env``; the environment module itself loads on ``gymnasium.make``).
+Importing the package makes the Gymnasium environment ``yafs_safetail/SafeTail-v0`` available
+to ``gymnasium.make`` (``yafs_safetail.sim.env``; the environment module itself loads on
+``gymnasium.make``). The package does not import Gymnasium itself: the command line answers
+``--help`` and argument errors without loading NumPy or Gymnasium. The id is registered as soon
+as Gymnasium's registry exists, whether it was imported before this package or after.
 """
 
-from gymnasium.envs.registration import register, registry
+from __future__ import annotations
+
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import sys
+from types import ModuleType
+from typing import Any
 
 __version__ = "0.1.0"
 
 ENV_ID = "yafs_safetail/SafeTail-v0"
-if ENV_ID not in registry:
-    register(id=ENV_ID, entry_point="yafs_safetail.sim.env:SafeTailEnv")
+_ENV_ENTRY_POINT = "yafs_safetail.sim.env:SafeTailEnv"
+_REGISTRY_MODULE = "gymnasium.envs.registration"
+
+
+def _register(registration: ModuleType) -> None:
+    if ENV_ID not in registration.registry:
+        registration.register(id=ENV_ID, entry_point=_ENV_ENTRY_POINT)
+
+
+class _RegisterWhenGymnasiumLoads(importlib.abc.MetaPathFinder):
+    """Registers ENV_ID right after Gymnasium's registry module first executes.
+
+    Asked only for that one module name; it lets the normal finders locate the module and wraps
+    the loader's ``exec_module`` so the registration follows it. It then leaves ``sys.meta_path``.
+    """
+
+    registers = ENV_ID  # a marker that survives importlib.reload (a new class object)
+
+    def find_spec(self, fullname: str, path: Any, target: ModuleType | None = None
+                  ) -> importlib.machinery.ModuleSpec | None:
+        if fullname != _REGISTRY_MODULE:
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(fullname)
+        if spec is None or spec.loader is None:
+            return spec
+        loader = spec.loader
+        execute = loader.exec_module
+
+        def exec_module_then_register(module: ModuleType) -> None:
+            execute(module)
+            _register(module)
+
+        loader.exec_module = exec_module_then_register  # type: ignore[method-assign]
+        return spec
+
+
+if _REGISTRY_MODULE in sys.modules:
+    _register(sys.modules[_REGISTRY_MODULE])
+elif not any(getattr(finder, "registers", None) == ENV_ID for finder in sys.meta_path):
+    sys.meta_path.insert(0, _RegisterWhenGymnasiumLoads())
