@@ -149,3 +149,21 @@ def test_cli_missing_folder(tmp_path):
     assert done.stderr.strip().splitlines() == [
         f"error: {tmp_path / 'nowhere'}: results folder not found"]
     assert not (tmp_path / "nowhere").exists()
+
+
+def test_cli_draws_only_the_asked_format(tmp_path, drawn_folder):
+    source, _ = drawn_folder
+    shutil.copyfile(source / "requests.csv", tmp_path / "requests.csv")
+    shutil.copyfile(source / "run.json", tmp_path / "run.json")
+    done = run_cli(str(tmp_path), "--figure-format", "png")
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == sorted(
+        f"{stem}.png" for stem in figures.FIGURE_STEMS.values())
+
+
+def test_cli_rejects_an_unknown_format(tmp_path, drawn_folder):
+    source, _ = drawn_folder
+    done = run_cli(str(source), "--figure-format", "png,svg")
+    assert done.returncode == 2
+    assert "--figure-format" in done.stderr and "'png,svg'" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -22,6 +22,7 @@ deleted figure behind.
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import tempfile
@@ -42,6 +43,7 @@ from yafs_safetail.results import ResultsFileError, RunMetadata
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 
 FIGURES_DIR = "figures"
+#: Every format a figure can be saved in, in the order they are written.
 FIGURE_FORMATS: tuple[str, ...] = ("png", "pdf")
 FIGURE_STEMS: dict[str, str] = {
     "a": "fig_a_latency_comparison",
@@ -110,9 +112,25 @@ def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
     return figure, axes
 
 
-def _save(figure: Figure, folder: Path, stem: str) -> list[Path]:
+def figure_formats(text: str) -> tuple[str, ...]:
+    """``"png"``, ``"pdf"`` or ``"png,pdf"`` -> the formats in FIGURE_FORMATS order.
+
+    Raises:
+        argparse.ArgumentTypeError: an unknown or empty format list (so a command line reports
+            it as a usage error naming the option).
+    """
+    asked = {part.strip().lower() for part in text.split(",") if part.strip()}
+    unknown = sorted(asked - set(FIGURE_FORMATS))
+    if unknown or not asked:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected a comma-separated list of {', '.join(FIGURE_FORMATS)}")
+    return tuple(fmt for fmt in FIGURE_FORMATS if fmt in asked)
+
+
+def _save(figure: Figure, folder: Path, stem: str,
+          formats: Sequence[str] = FIGURE_FORMATS) -> list[Path]:
     written = []
-    for fmt in FIGURE_FORMATS:
+    for fmt in formats:
         dest = folder / f"{stem}.{fmt}"
         handle, tmp_name = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp.{fmt}", dir=folder)
         os.close(handle)
@@ -249,16 +267,18 @@ def draw_figures(
     directory: str | os.PathLike[str],
     requests: pd.DataFrame | None = None,
     run: RunMetadata | None = None,
+    formats: Sequence[str] = FIGURE_FORMATS,
 ) -> list[Path]:
-    """Draw panels (a)-(g) into ``directory/figures`` as PNG and PDF.
+    """Draw panels (a)-(g) into ``directory/figures`` in each of ``formats``.
 
     Args:
         directory: the results folder.
         requests: the requests table (read from ``requests.csv`` when None).
         run: the run's metadata (read from ``run.json`` when None).
+        formats: a subset of FIGURE_FORMATS (PDF takes about as long as PNG to write).
 
     Returns:
-        The written files, panel by panel, PNG before PDF.
+        The written files, panel by panel, in FIGURE_FORMATS order.
 
     Raises:
         ResultsFileError: bad or missing input (nothing is written or removed then).
@@ -274,7 +294,7 @@ def draw_figures(
     written: list[Path] = []
     with matplotlib.rc_context(_STYLE):
         for panel, figure in built.items():
-            written += _save(figure, out, FIGURE_STEMS[panel])
+            written += _save(figure, out, FIGURE_STEMS[panel], formats)
     return written
 
 
@@ -283,11 +303,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(
         prog="python -m yafs_safetail.figures",
         description="Redraw the paper's Figs. 5-7 (a)-(g) from a results folder "
-                    "(requests.csv and run.json) into DIR/figures as PNG and PDF.",
+                    "(requests.csv and run.json) into DIR/figures.",
     )
     parser.add_argument("directory", metavar="DIR", help="results folder of one run")
+    parser.add_argument("--figure-format", type=figure_formats, default=FIGURE_FORMATS,
+                        metavar="FORMATS",
+                        help="comma-separated: png, pdf or both (default: png,pdf)")
     args = parser.parse_args(argv)
-    written = draw_figures(args.directory)
+    written = draw_figures(args.directory, formats=args.figure_format)
     print(f"wrote {len(written)} files to {Path(args.directory) / FIGURES_DIR}")
     return 0
 
