@@ -20,6 +20,7 @@ back before anything else.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import json
 import logging
@@ -36,6 +37,10 @@ RUN_FILE = "run.json"
 REQUESTS_FILE = "requests.csv"
 #: A load sweep's table (experiments/load_sweep.py), which it writes instead of requests.csv.
 SWEEP_FILE = "sweep.csv"
+
+
+#: What a write into a full file system (or a full quota) fails with.
+DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
 
 
 class OutputError(ValueError):
@@ -227,10 +232,17 @@ class StagedOutput:
         if previous is not None:
             shutil.rmtree(previous, ignore_errors=True)
 
-    def __exit__(self, *exc_info: object) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, error: BaseException | None,
+                 traceback: object) -> None:
         try:
             if self.staging is not None:
                 shutil.rmtree(self.staging, ignore_errors=True)
                 self.staging = None
         finally:
             self._stack.close()
+        if isinstance(error, OSError) and error.errno in DISK_FULL_ERRNOS:
+            # The writer's own message names neither the folder nor what was kept.
+            kept = ("the earlier results there are untouched" if is_results_folder(self.target)
+                    else "nothing was left there")
+            raise OutputError(f"{self.option} {self.out_dir}: no space left on the device while "
+                              f"writing the results; {kept}") from None
