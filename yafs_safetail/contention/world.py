@@ -50,7 +50,7 @@ from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_se
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.usecases import UseCase, get_use_case
-from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, build_world
+from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, build_world, phase_streams
 
 #: Requests drawn per block (memory stays bounded however long the run).
 DEFAULT_BLOCK_REQUESTS = 20_000
@@ -297,7 +297,7 @@ class ContentionWorld:
         """ρ per (request, server) from each request's user's conditions, with the same RTT
         quantiles the block's world drew (so a user at the topology's conditions sees the same
         RTTs as under ``"topology"``)."""
-        servers_seq = phase_seed_sequence(self.config.seed, phase).spawn(4)[3]
+        servers_seq = phase_streams(self.config.seed, phase)["servers"]  # the block world's own
         quantiles = draw_servers(servers_seq, self.n_servers, world.n_steps).rtt_quantiles
         extra_s = link_scales(self.scenario).server_extra_propagation_s
         by_condition = {c: propagation(self.inputs, (c,) * self.n_servers, quantiles, extra_s,

@@ -42,9 +42,24 @@ from yafs_safetail.edge.usecases import UseCase
 __all__ = [
     "DEFAULT_EPISODE_STEPS", "DEFAULT_MAX_LOAD", "EdgeWorld", "HopTables", "TraceInputs",
     "WorldError", "build_world", "cpu_utilisation", "link_scales", "load_inputs",
-    "memory_utilisation", "phase_seed_sequence", "target_compute_by_request_s", "trace_inputs",
-    "worst_case_copy_latency_s",
+    "memory_utilisation", "phase_seed_sequence", "phase_streams", "target_compute_by_request_s",
+    "trace_inputs", "worst_case_copy_latency_s", "PHASE_STREAMS",
 ]
+
+#: A phase's independent random streams, in the order they are spawned from the phase's seed
+#: (:func:`phase_streams`). The order decides every draw of every world: never reorder it, and
+#: add a new stream only at the end.
+PHASE_STREAMS: tuple[str, ...] = ("requests", "user_bandwidth", "episodes", "servers")
+
+
+def phase_streams(seed: int, phase: str) -> dict[str, np.random.SeedSequence]:
+    """The seed of each of a phase's streams (:data:`PHASE_STREAMS`), by name.
+
+    Another world drawing a quantity exactly as :func:`build_world` does (the contention
+    world's per-user RTTs) takes the same stream by its name.
+    """
+    spawned = phase_seed_sequence(seed, phase).spawn(len(PHASE_STREAMS))
+    return dict(zip(PHASE_STREAMS, spawned, strict=True))
 
 #: Paper Table I: maximum load of each edge server.
 DEFAULT_MAX_LOAD = 4
@@ -394,7 +409,9 @@ def build_world(
         fallback_latency_s = settings.fallback_compute_multiple * float(inputs.median_compute_by_k_s[0])
 
     n = scenario.n_servers
-    request_seq, user_bw_seq, episode_seq, servers_seq = phase_seed_sequence(seed, phase).spawn(4)
+    streams = phase_streams(seed, phase)
+    request_seq, user_bw_seq = streams["requests"], streams["user_bandwidth"]
+    episode_seq, servers_seq = streams["episodes"], streams["servers"]
     servers = sampling.draw_servers(servers_seq, n, n_steps)
     requests = sampling.draw_requests(np.random.default_rng(request_seq), inputs, use_case, n_steps)
     user_uplink_bps, user_downlink_bps = sampling.draw_user_bandwidth(
