@@ -33,6 +33,7 @@ reported and the others go on (exit status 1, no report). Progress goes to stder
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 from collections.abc import Sequence
@@ -46,11 +47,9 @@ from yafs_safetail.cli import (
     add_verbosity_options,
     configure_verbosity,
     distinct_int_list,
-    positive_float,
     run_cli,
 )
 from yafs_safetail.edge.calibration import (
-    TARGET_COMPUTES,
     CalibrationError,
     read_calibration,
     seed_set,
@@ -65,6 +64,7 @@ from yafs_safetail.figures_multiseed import (
 from yafs_safetail.methods.safetail.presets import PRESET_NAMES
 from yafs_safetail.results import feasibility, fidelity, latex
 from yafs_safetail.runs.campaign import add_engine_options, engine_free_command, run_campaign
+from yafs_safetail.runs.config import LearnerOverrides, add_options
 from yafs_safetail.runs.experiment import ExperimentError
 from yafs_safetail.runs.grid import expand
 from yafs_safetail.runs.output import refuse_protected
@@ -262,17 +262,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)")
     parser.add_argument("--preset", type=_presets, default=("paper",),
                         help="preset(s), comma-separated (default paper)")
-    parser.add_argument("--steps-scale", type=float, default=1.0,
-                        help="fraction of each preset's steps (default 1)")
     parser.add_argument("--out", type=Path, default=Path("results/reproduce"),
                         help="output folder (default results/reproduce)")
-    parser.add_argument("--target-compute", choices=TARGET_COMPUTES, default=None,
-                        help="C(s_j) of Eq. 4 for every run (default: each preset world's; "
-                             "docs/deviations.md D11)")
-    parser.add_argument("--learning-rate", type=positive_float, default=None,
-                        help="Adam's learning rate for every run instead of each preset's (the "
-                             "report then says these are not the presets' results)")
-    parser.add_argument("--no-figures", action="store_true", help="skip the per-run figures")
+    # The settings every run shares, each declared once in runs.config (its type, check and
+    # default); the help says what they mean for the whole reproduction.
+    add_options(parser, only=("steps_scale", "target_compute"),
+                steps_scale={"help": "fraction of each preset's steps (default 1)"},
+                target_compute={"help": "C(s_j) of Eq. 4 for every run (default: each preset world's; "
+                                        "docs/deviations.md D11)"})
+    add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
+                learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
+                                       "report then says these are not the presets' results)"})
+    add_options(parser, only=("figures",), figures={"help": "skip the per-run figures"})
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders in --out that hold another configuration")
     add_engine_options(parser)
@@ -287,11 +288,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     refuse_protected(args.out)
     # Every (use case, preset, seed) is one run of a campaign: resumable, in parallel with
     # --workers, each run's folder where it always was.
-    base = {"steps_scale": args.steps_scale, "figures": not args.no_figures}
-    if args.target_compute is not None:
-        base["target_compute"] = args.target_compute
-    if args.learning_rate is not None:
-        base["learning_rate"] = args.learning_rate
+    base = {"steps_scale": args.steps_scale, "figures": args.figures}
+    overridable = ("target_compute", *(item.name for item in dataclasses.fields(LearnerOverrides)))
+    base.update({name: getattr(args, name) for name in overridable if getattr(args, name) is not None})
     specs = expand(base,
                    {"use_case": list(args.uc), "preset": list(args.preset), "seed": list(args.seeds)},
                    name=RUN_FOLDER, source="reproduce_all.py")

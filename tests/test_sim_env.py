@@ -25,6 +25,7 @@ from yafs_safetail.methods.safetail.spaces import (
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.experiment import YAFS_DIR, ExperimentConfig, run_experiment
 from yafs_safetail.runs.workers import method_rng
+from yafs_safetail.runs.world_recipe import make_world
 from yafs_safetail.sim.env import SafeTailEnv
 
 TINY = 0.02  # UC1: 200 training steps (within one α_s = 256 episode), 80 test steps
@@ -119,6 +120,28 @@ def test_bad_actions_and_arguments_are_one_line_errors():
                               ({"preset": "fancy"}, "fancy")]:
         with pytest.raises(ValueError, match=fragment) as caught:
             SafeTailEnv(**{"use_case": 1, **options})
+        assert "\n" not in str(caught.value)
+
+
+def test_the_environment_takes_the_experiments_world_options():
+    """The env's world is the experiment's recipe: the same overrides give the same draws."""
+    options = {"target_latency_s": 1.5, "load_peak_users": 2.0, "target_compute": "request"}
+    env = make(phase="test", **options)
+    env.reset(seed=3)
+    world = env.unwrapped.world
+    assert np.all(world.target_s == 1.5)
+    assert world.settings.load_peak_users == 2.0 and world.settings.target_compute == "request"
+    expected = make_world(ExperimentConfig(use_case=1, steps_scale=TINY, seed=3, **options), "test")
+    for name in ("target_s", "background_users", "rtt_s", "input_bytes", "target_compute_s"):
+        np.testing.assert_array_equal(getattr(world, name), getattr(expected, name))
+    plain = make(phase="test")
+    plain.reset(seed=3)
+    assert not np.array_equal(plain.unwrapped.world.background_users, world.background_users)
+    for bad, fragment in [({"target_latency_s": 0}, "target_latency_s"),
+                          ({"load_peak_users": -1.0}, "load_peak_users"),
+                          ({"target_compute": "mean"}, "target_compute")]:
+        with pytest.raises(ValueError, match=f"^{fragment}: ") as caught:
+            SafeTailEnv(use_case=1, **bad)
         assert "\n" not in str(caught.value)
 
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import logging
-import math
 import os
 import time
 from collections.abc import Sequence
@@ -39,26 +38,14 @@ import pandas as pd
 
 import yafs_safetail
 from yafs_safetail import results
-from yafs_safetail.edge.calibration import CalibrationError, WorldSettings, world_settings
-from yafs_safetail.edge.inputs import load_scenario_for
-from yafs_safetail.edge.scenario import (
-    DEFAULT_PLACEMENT,
-    DEFAULT_TOPOLOGY,
-    REPOSITORY,
-    EdgeScenario,
-)
-from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
-from yafs_safetail.edge.usecases import UseCase, get_use_case
-from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY as DEFAULT_TOPOLOGY  # (re-exported)
+from yafs_safetail.edge.scenario import REPOSITORY, EdgeScenario
+from yafs_safetail.edge.usecases import UseCase
+from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
-from yafs_safetail.methods.registry import SAFETAIL, UserMethod, baseline_names, sort_methods
+from yafs_safetail.methods.registry import SAFETAIL, baseline_names, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
-from yafs_safetail.methods.safetail.presets import (
-    PRESET_WORLDS,
-    LearnerConfig,
-    get_preset,
-    scaled_steps,
-)
+from yafs_safetail.methods.safetail.presets import LearnerConfig
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, StateScales, state_dim
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.budget import check_budget
@@ -72,99 +59,16 @@ from yafs_safetail.runs.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
+from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
-from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
+from yafs_safetail.runs.world_recipe import TEST, TRAIN, world_recipe
 from yafs_safetail.sim.runner import Simulation, simulate
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
 
 log = logging.getLogger(__name__)
-
-
-class ExperimentError(ValueError):
-    """A bad experiment setting (one line naming the setting and what is wrong)."""
-
-
-@dataclass(frozen=True)
-class ExperimentConfig:
-    """Everything one run depends on; the same config and seed give identical result files.
-
-    Attributes:
-        use_case: 1 object detection, 2 instance segmentation, 3 noise removal.
-        preset: ``"paper"`` (the default: Table I with the readings under which it learns, in
-            the calibrated world), ``"paper-literal"`` (Table I letter for letter, in the
-            landed world) or ``"tuned"`` (our learner settings, in the calibrated world); see
-            :data:`PRESET_WORLDS`.
-        seed: the run's seed (non-negative integer); every random draw derives from it.
-        out_dir: the results folder, written only when the run succeeds (runs.output: an
-            existing folder must be an earlier results folder, replaced only with ``overwrite``).
-        topology: YAFS topology JSON (user, access point, edge servers).
-        placement: YAFS placement JSON (the service on each edge server, in index order).
-        traces_dir: folder with the trace CSVs and the compute models.
-        steps_scale: fraction of the preset's training and testing steps (for quick runs).
-        redundancy_levels: the x of Rand-x, MinLoad-x and MinProp-x.
-        methods: users' policies compared on the same requests (``--method``).
-        step_interval_s: simulated time between two requests (one load-trace row).
-        write_yafs_csv: write each method's YAFS result CSVs under ``yafs/``.
-        figures: draw Figs. (a)-(g) into ``figures/``.
-        progress: show progress bars on stderr (the phases are logged either way).
-        policy: a saved policy (``.keras``) to evaluate without training.
-        command: the command line, recorded in ``run.json``.
-        workers: processes for the run: the other methods' test phase runs in ``workers - 1``
-            forked processes while this one trains SafeTail (1: everything here). The
-            results do not depend on it.
-        world: the world settings; None: the preset's world (:data:`PRESET_WORLDS`).
-        target_latency_s: a fixed target latency τ for every request instead of Eq. 4's
-            heuristic (``--target-latency-s``); None: Eq. 4 (the paper).
-        load_peak_users: the load level: background users on a server at its load device's
-            busiest minute (0 = idle servers, 4 = full at the peak); None: the world's own.
-        target_compute: C(s_j) of Eq. 4 (``--target-compute``): ``"request"``, the median
-            compute time at ν of the request's own input, or ``"trace_median"``, the compute
-            trace's median at ν for every request; None: the world's own (docs/deviations.md D11).
-        overwrite: replace an earlier results folder at ``out_dir`` (``--overwrite``).
-        force: run a budget beyond the disk and memory limits (``--force``).
-        run_id: the campaign's identifier of this configuration (``runs.campaign``), recorded
-            in ``run.json`` as ``campaign_run_id`` so that a rerun of the campaign knows the
-            folder holds this very run; empty (not recorded) outside campaigns.
-        resume: continue the interrupted training of this configuration from its checkpoint
-            (``runs.checkpoint``; ``--resume``); the results are those of an uninterrupted run.
-        checkpoint_every_s: wall time between two training checkpoints (one is also written
-            when training ends); 0: at every chance. None: no checkpoints.
-        learning_rate: Adam's learning rate for SafeTail's training instead of the preset's
-            (``--learning-rate``); None: the preset's. Everything else stays the preset's; the
-            run is then no longer the preset's configuration, and ``run.json`` and
-            ``summary.md`` say so.
-    """
-
-    use_case: int = 1
-    preset: str = "paper"
-    seed: int = 0
-    out_dir: Path = Path("results/uc1")
-    topology: Path = DEFAULT_TOPOLOGY
-    placement: Path = DEFAULT_PLACEMENT
-    traces_dir: Path = DEFAULT_TRACE_DIR
-    steps_scale: float = 1.0
-    redundancy_levels: tuple[int, ...] = (1, 2, 3)
-    methods: tuple[UserMethod, ...] = ()
-    step_interval_s: float = DEFAULT_STEP_INTERVAL_S
-    write_yafs_csv: bool = False
-    figures: bool = True
-    progress: bool = True
-    policy: Path | None = None
-    command: str = ""
-    workers: int = 2
-    world: WorldSettings | None = None
-    target_latency_s: float | None = None
-    load_peak_users: float | None = None
-    target_compute: str | None = None
-    overwrite: bool = False
-    force: bool = False
-    run_id: str = ""
-    resume: bool = False
-    checkpoint_every_s: float | None = 60.0
-    learning_rate: float | None = None
 
 
 #: Training requests between two chances to checkpoint (and two progress-bar updates).
@@ -202,32 +106,15 @@ class _Inputs:
 
 def _check(config: ExperimentConfig) -> _Inputs:
     """Check the configuration and inputs, and draw the worlds (steps 1 and 2)."""
-    use_case = get_use_case(config.use_case)
-    if isinstance(config.seed, bool) or not isinstance(config.seed, int) or config.seed < 0:
-        raise ExperimentError(f"--seed: expected a non-negative integer, got {config.seed!r}")
-    if not (isinstance(config.steps_scale, float | int) and math.isfinite(config.steps_scale)
-            and config.steps_scale > 0):
-        raise ExperimentError(f"--steps-scale: expected a positive number, got {config.steps_scale!r}")
-    base = get_preset(config.preset, use_case.number)
-    learner_config = get_preset(config.preset, use_case.number,
-                                train_steps=scaled_steps(base.train_steps, config.steps_scale))
-    if config.learning_rate is not None:  # checked here too: campaign grids set it directly
-        if config.policy is not None:
-            raise ExperimentError("--learning-rate: nothing trains with --policy; give one or the other")
-        rate = config.learning_rate
-        if isinstance(rate, bool) or not isinstance(rate, float | int) or not (
-                math.isfinite(rate) and rate > 0):
-            raise ExperimentError(f"--learning-rate: expected a positive number, got {rate!r}")
-        learner_config = dataclasses.replace(learner_config, learning_rate=float(rate))
-    if isinstance(config.workers, bool) or not isinstance(config.workers, int) or config.workers < 1:
-        raise ExperimentError(f"--workers: expected a positive integer, got {config.workers!r}")
+    if config.learning_rate is not None and config.policy is not None:
+        raise ExperimentError("--learning-rate: nothing trains with --policy; give one or the other")
     if not config.redundancy_levels:
         raise ExperimentError("--redundancy: give at least one level x")
+    recipe = world_recipe(config)  # every field's own check, then the traces and the scenario
+    use_case, scenario = recipe.use_case, recipe.scenario
     names = [m.name for m in config.methods]
     if len(set(names)) != len(names):
         raise ExperimentError(f"--method: two methods are named {sorted(n for n in names if names.count(n) > 1)[0]!r}")
-    inputs = load_inputs(use_case, config.traces_dir)
-    scenario = load_scenario_for(inputs, Path(config.topology), Path(config.placement))
     if scenario.n_servers > MAX_SERVERS:
         raise ExperimentError(
             f"{config.topology}: entity: {scenario.n_servers} edge servers; SafeTail supports 1 to "
@@ -242,34 +129,15 @@ def _check(config: ExperimentConfig) -> _Inputs:
         method.make(scenario.n_servers, method_rng(config.seed, method.name))
     if config.policy is not None:
         _check_saved_policy(config.policy, use_case, scenario)
-    test_steps = scaled_steps(base.test_steps, config.steps_scale)
     n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
-    check_budget(config, base, learner_config, test_steps, n_methods)
-    settings = config.world or world_settings(PRESET_WORLDS[config.preset])
-    overrides: dict[str, Any] = {}
-    for name in ("target_latency_s", "load_peak_users", "target_compute"):  # the run's own options over the world's
-        value = getattr(config, name)
-        if value is None:
-            continue
-        try:
-            changed = dataclasses.replace(settings, **{name: value})
-        except CalibrationError:
-            raise ExperimentError(f"--{name.replace('_', '-')}: {value!r} is out of range") from None
-        if changed != settings:  # an option repeating the world's own value leaves it the preset's
-            overrides[name] = value
-        settings = changed
-
-    def world(phase: str, n_steps: int) -> EdgeWorld:
-        return build_world(scenario, use_case, inputs, n_steps, seed=config.seed, phase=phase,
-                           episode_steps=learner_config.episode_steps, settings=settings)
-
+    check_budget(config, recipe.full_preset, recipe.learner, recipe.test_steps, n_methods)
     return _Inputs(
         use_case=use_case,
-        learner_config=learner_config,
+        learner_config=recipe.learner,
         scenario=scenario,
-        train_world=world("train", learner_config.train_steps) if config.policy is None else None,
-        test_world=world("test", test_steps),
-        world_overrides=overrides,
+        train_world=recipe.make_world(TRAIN, config.seed) if config.policy is None else None,
+        test_world=recipe.make_world(TEST, config.seed),
+        world_overrides=recipe.overrides,
     )
 
 

@@ -1,7 +1,7 @@
 """A campaign's grid: which runs it holds, what each one is called and what identifies it.
 
 A grid is fixed settings (``base``) and axes (``axes``: a list of values per
-:class:`~yafs_safetail.runs.experiment.ExperimentConfig` field); the campaign is every
+:class:`~yafs_safetail.runs.config.ExperimentConfig` field that changes results); the campaign is every
 combination, the first axis outermost. Written by hand as TOML, YAML or JSON::
 
     name = "uc{use_case}-{preset}-seed{seed}-{id}"    # optional; the default names each axis
@@ -17,7 +17,8 @@ combination, the first axis outermost. Written by hand as TOML, YAML or JSON::
 A run's id is a short hash of everything its results depend on: every result-bearing field
 (paths replaced by where they are and a digest of what they hold, so an edited topology or
 trace file is a new run) and the code version (package version and git commit). Fields that
-only say where and how a run goes (``out_dir``, ``workers``, ``progress``...) are not part of it.
+only say where and how a run goes (``out_dir``, ``workers``, ``progress``...; declared with
+``changes_results=False`` in ``runs.config``) are not part of it.
 """
 
 from __future__ import annotations
@@ -38,17 +39,19 @@ import yafs_safetail
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.registry import UserMethod
-from yafs_safetail.runs.experiment import ExperimentConfig
+from yafs_safetail.runs.config import RESULT_FIELDS, ExperimentConfig
+from yafs_safetail.runs.config import RUNTIME_FIELDS as RUNTIME_FIELDS  # (re-exported)
 
 #: Hex digits of a run id: 48 bits, so two configurations of one campaign never share one.
 ID_LENGTH = 12
 
-#: Fields that say where a run goes and how it shows itself, never what it computes: the
-#: campaign sets them, and they are left out of the run id.
-RUNTIME_FIELDS = ("out_dir", "progress", "command", "workers", "overwrite", "force", "run_id",
-                  "resume", "checkpoint_every_s")
-PATH_FIELDS = ("topology", "placement", "traces_dir", "policy")
-SETTABLE_FIELDS = tuple(f.name for f in fields(ExperimentConfig) if f.name not in RUNTIME_FIELDS)
+#: RUNTIME_FIELDS (from runs.config) say where a run goes and how it shows itself, never what
+#: it computes: the campaign sets them, and they are left out of the run id. A grid sets the
+#: others, every field that may change the results.
+SETTABLE_FIELDS = RESULT_FIELDS
+#: Settable fields holding a file or folder (identified by place and content).
+PATH_FIELDS = tuple(f.name for f in fields(ExperimentConfig)
+                    if f.name in SETTABLE_FIELDS and f.type in ("Path", "Path | None"))
 
 
 class GridError(ValueError):

@@ -10,7 +10,10 @@ model's delay hooks, the policy selection), driven from outside: ``reset(seed=s)
 world ``run_usecase.py --seed s`` trains in (or tests in, ``phase="test"``), and each ``step``
 sends one request to the chosen subset and runs the simulation until that request has its
 first reply. SafeTail trained through this environment gives the same records and weights as
-``run_usecase.py`` (tested).
+``run_usecase.py`` (tested). Its world comes from the same recipe as the experiment's
+(``runs.world_recipe``), so it takes the same world options: ``target_latency_s``,
+``load_peak_users`` and ``target_compute`` as ``--target-latency-s``, ``--load-peak-users`` and
+``--target-compute``.
 
 Spaces:
 
@@ -41,7 +44,6 @@ and, after a step, ``record``: the request's :class:`~yafs_safetail.record.Reque
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from typing import Any
 
@@ -49,18 +51,16 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from yafs_safetail.edge.calibration import world_settings
-from yafs_safetail.edge.inputs import load_scenario_for
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
-from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import EdgeWorld, build_world, load_inputs
+from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.methods.policy import Policy
-from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, get_preset, scaled_steps
 from yafs_safetail.methods.safetail.reward import reward
 from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, n_actions, subset_of
 from yafs_safetail.record import PHASES, RequestRecord
+from yafs_safetail.runs.config import ExperimentConfig
+from yafs_safetail.runs.world_recipe import world_recipe
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
 
@@ -106,6 +106,12 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         observation: ``"dict"`` (ω^t field by field) or ``"vector"`` (SafeTail's scaled state).
         results_path: YAFS result CSVs prefix (None: none written).
         method_name: the ``method`` of the records in ``info["record"]``.
+        target_latency_s: a fixed target latency τ for every request (``--target-latency-s``;
+            None: Eq. 4).
+        load_peak_users: background users on a server at its busiest minute
+            (``--load-peak-users``; None: the preset world's).
+        target_compute: C(s_j) of Eq. 4, ``"request"`` or ``"trace_median"``
+            (``--target-compute``; None: the preset world's).
 
     Raises:
         ValueError: a bad argument or input file (one line naming it).
@@ -126,32 +132,33 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         observation: str = "dict",
         results_path: str | Path | None = None,
         method_name: str = "agent",
+        target_latency_s: float | None = None,
+        load_peak_users: float | None = None,
+        target_compute: str | None = None,
     ) -> None:
         if phase not in PHASES:
             raise ValueError(f"phase: expected one of {PHASES}, got {phase!r}")
         if observation not in OBSERVATION_KINDS:
             raise ValueError(f"observation: expected one of {OBSERVATION_KINDS}, got {observation!r}")
-        if not (isinstance(steps_scale, float | int) and math.isfinite(steps_scale) and steps_scale > 0):
-            raise ValueError(f"steps_scale: expected a positive number, got {steps_scale!r}")
-        self.use_case = get_use_case(use_case)
-        base = get_preset(preset, self.use_case.number)
-        self.learner_config = get_preset(preset, self.use_case.number,
-                                         train_steps=scaled_steps(base.train_steps, steps_scale))
+        if placement is None:
+            placement = default_placement(Path(topology))
+        # The experiment's own recipe: the same checks, world settings and overrides.
+        self._recipe = world_recipe(ExperimentConfig(
+            use_case=use_case, preset=preset, steps_scale=steps_scale, topology=Path(topology),
+            placement=Path(placement), traces_dir=Path(traces_dir), step_interval_s=step_interval_s,
+            target_latency_s=target_latency_s, load_peak_users=load_peak_users,
+            target_compute=target_compute), style="field")
+        self.use_case = self._recipe.use_case
+        self.learner_config = self._recipe.learner
         self.phase = phase
-        self.n_steps = (self.learner_config.train_steps if phase == "train"
-                        else scaled_steps(base.test_steps, steps_scale))
+        self.n_steps = self._recipe.n_steps(phase)
         self.episode_steps = self.learner_config.episode_steps
         self.delta = self.learner_config.delta
         self.step_interval_s = float(step_interval_s)
         self.results_path = None if results_path is None else Path(results_path)
         if self.results_path is not None:
             self.results_path.parent.mkdir(parents=True, exist_ok=True)
-        self._inputs = load_inputs(self.use_case, Path(traces_dir))
-        topology = Path(topology)
-        if placement is None:
-            placement = default_placement(topology)
-        self.scenario = load_scenario_for(self._inputs, topology, Path(placement))
-        self._settings = world_settings(PRESET_WORLDS[preset])
+        self.scenario = self._recipe.scenario
         self.n_servers = n = self.scenario.n_servers
         self.action_space = spaces.Discrete(n_actions(n))
         self._kind = observation
@@ -219,9 +226,7 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
     # ----------------------------------------------------------------------------- helpers
 
     def _start_world(self, seed: int) -> None:
-        self.world = build_world(self.scenario, self.use_case, self._inputs, self.n_steps, seed=seed,
-                                 phase=self.phase, episode_steps=self.episode_steps,
-                                 settings=self._settings)
+        self.world = self._recipe.make_world(self.phase, seed)
         self._simulation = deploy(self.world, self._agent, self.step_interval_s, self.results_path)
         self._step = 0
 

@@ -1,0 +1,395 @@
+"""Every setting of a run, declared once: its type, default, help text, check, and whether it
+changes the results.
+
+A run's configuration is four small groups, each a frozen dataclass a reader can take in at a
+glance:
+
+- :class:`Task`: what to run (use case, preset, seed, budget, the methods compared);
+- :class:`WorldSetup`: the world it runs in (topology, placement, traces, the world's settings
+  and the run's own overrides of them);
+- :class:`LearnerOverrides`: SafeTail's hyperparameters that replace the preset's;
+- :class:`Output`: where the run writes and how it runs (never what it computes, except which
+  files the folder holds).
+
+:class:`ExperimentConfig` is the four together (it inherits their fields, so ``config.seed``
+and ``ExperimentConfig(seed=3)`` read as before). Each field carries a :class:`Setting` in its
+metadata, and everything else is derived from it: the command-line options of the scripts
+(:func:`add_options`), the configuration from parsed options (:func:`config_from_args`), the
+checks at run start (:func:`check_config`), the campaign grid's settable fields and the run id
+(``runs.grid``: :data:`RESULT_FIELDS`), the learner's hyperparameters (:func:`learner_config`)
+and ``run.json``'s record of what was overridden (:func:`learner_overrides`).
+
+Adding a setting is one field in one group (CONTRIBUTING.md shows an example).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from yafs_safetail import cli
+from yafs_safetail.edge.calibration import TARGET_COMPUTES, WorldSettings
+from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
+from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
+from yafs_safetail.methods.registry import UserMethod
+from yafs_safetail.methods.safetail.presets import (
+    PRESET_NAMES,
+    LearnerConfig,
+    get_preset,
+    scaled_steps,
+)
+from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
+
+
+class ExperimentError(ValueError):
+    """A bad experiment setting (one line naming the setting and what is wrong)."""
+
+
+# ----------------------------------------------------------------------------- checks
+
+
+@dataclass(frozen=True)
+class Check:
+    """What values a setting accepts, for the command line and for values set in Python.
+
+    Attributes:
+        what: the accepted values in words (``"a positive number"``), for error messages.
+        accepts: whether a Python value is acceptable (``None`` is handled by the caller).
+        parse: the argparse ``type``: text to value, raising ``argparse.ArgumentTypeError``.
+        choices: the accepted values when they are a short list (argparse shows them).
+    """
+
+    what: str
+    accepts: Callable[[Any], bool]
+    parse: Callable[[str], Any] | None = None
+    choices: tuple[Any, ...] | None = None
+
+
+def _is_number(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, float | int) and math.isfinite(value)
+
+
+def _is_integer(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, int)
+
+
+POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, cli.positive_float)
+NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: _is_number(v) and v >= 0,
+                            cli.non_negative_float)
+POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, cli.positive_int)
+NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: _is_integer(v) and v >= 0,
+                             cli.non_negative_int)
+BOOLEAN = Check("true or false", lambda v: isinstance(v, bool))
+
+
+def one_of(choices: Sequence[Any], parse: Callable[[str], Any] | None = None) -> Check:
+    """A check for one of a few values (argparse lists them; ``parse`` turns text into one)."""
+    listed = ", ".join(str(c) for c in choices)
+    return Check(f"one of {listed}", lambda v: not isinstance(v, bool) and v in choices, parse, tuple(choices))
+
+
+def _redundancy_levels(text: str) -> tuple[int, ...]:
+    try:
+        levels = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not levels:
+        raise argparse.ArgumentTypeError("expected at least one level")
+    return levels
+
+
+#: Redundancy levels: their range depends on the topology, checked when it is read.
+LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_integer(x) for x in v),
+               _redundancy_levels)
+
+
+# ----------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True)
+class Setting:
+    """What the project knows about one field of a configuration.
+
+    Attributes:
+        help: what it means, as the command line's help shows it.
+        changes_results: whether two runs differing in it may write different results files
+            (part of the run id). Where and how a run goes (its folder, processes, progress,
+            resuming) does not.
+        check: the values it accepts (None: any value of its type).
+        flag: its command-line option; None: ``--`` and the name with dashes. ``""``: none
+            (set from Python or a grid only).
+        optional: None is a valid value (the preset's or the world's own).
+        action: an argparse action instead of a typed value (``"store_true"``, ``"store_false"``
+            for a ``--no-...`` flag, ``"append"``).
+        metavar: the option's value placeholder in the help.
+        from_cli: turns the parsed value into the field's value (e.g. specs into methods).
+    """
+
+    help: str
+    changes_results: bool = True
+    check: Check | None = None
+    flag: str | None = None
+    optional: bool = False
+    action: str | None = None
+    metavar: str | None = None
+    from_cli: Callable[[Any], Any] | None = None
+
+    def option(self, name: str) -> str:
+        """The command-line option of the field ``name`` (``--steps-scale``), or ``""``."""
+        return f"--{name.replace('_', '-')}" if self.flag is None else self.flag
+
+
+_SETTING = "yafs_safetail.setting"
+
+
+def setting(default: Any, help: str, **kwargs: Any) -> Any:
+    """A dataclass field with its :class:`Setting` (``kwargs`` are the Setting's)."""
+    return field(default=default, metadata={_SETTING: Setting(help=help, **kwargs)})
+
+
+def setting_of(item: dataclasses.Field[Any]) -> Setting:
+    """The :class:`Setting` of a configuration field."""
+    found = item.metadata.get(_SETTING)
+    if not isinstance(found, Setting):
+        raise TypeError(f"{item.name}: a configuration field must be declared with setting()")
+    return found
+
+
+# ----------------------------------------------------------------------------- the groups
+
+
+@dataclass(frozen=True)
+class Task:
+    """What to run: which use case, with which learner preset and seed, how long, against what."""
+
+    use_case: int = setting(1, "use case: 1 object detection, 2 instance segmentation, 3 noise removal",
+                            check=one_of(USE_CASES, int), flag="--uc")
+    preset: str = setting(
+        "paper", "learner preset (default: paper = Table I with the readings under which it learns, "
+        "in the calibrated world; paper-literal = Table I verbatim; tuned = ours; docs/deviations.md)",
+        check=one_of(PRESET_NAMES))
+    seed: int = setting(0, "the run's seed (default 0)", check=NON_NEGATIVE_INTEGER)
+    steps_scale: float = setting(1.0, "fraction of the preset's training and testing steps (default 1)",
+                                 check=POSITIVE_NUMBER)
+    redundancy_levels: tuple[int, ...] = setting(
+        (1, 2, 3), "levels x of Rand-x, MinLoad-x, MinProp-x (default 1,2,3)", check=LEVELS,
+        flag="--redundancy")
+    methods: tuple[UserMethod, ...] = setting(
+        (), "add your own Policy to the comparison (also module:Class; repeatable; named after the "
+        "class unless NAME= is given)", flag="--method", action="append", metavar="[NAME=]FILE.py:CLASS",
+        from_cli=lambda specs: tuple(UserMethod(spec) for spec in specs))
+    policy: Path | None = setting(None, "evaluate this saved policy (.keras) without training", optional=True)
+
+
+@dataclass(frozen=True)
+class WorldSetup:
+    """The world the run happens in: the topology, the traces, and the world's settings."""
+
+    topology: Path = setting(DEFAULT_TOPOLOGY, "YAFS topology JSON with 1 to 10 edge servers "
+                             "(default topologies/paper_5servers.json)")
+    placement: Path = setting(DEFAULT_PLACEMENT, "YAFS placement JSON (default: placements/<topology file name>)")
+    traces_dir: Path = setting(DEFAULT_TRACE_DIR, "folder with the trace CSVs and the compute models", flag="")
+    step_interval_s: float = setting(
+        DEFAULT_STEP_INTERVAL_S, f"simulated time between two requests, one load-trace row "
+        f"(default {DEFAULT_STEP_INTERVAL_S:g})", check=POSITIVE_NUMBER)
+    world: WorldSettings | None = setting(
+        None, "the world settings; None: the preset's world (methods.safetail.presets.PRESET_WORLDS)",
+        flag="", optional=True)
+    target_latency_s: float | None = setting(
+        None, "a fixed target latency for every request, in seconds (default: Eq. 4's per-request "
+        "heuristic, as in the paper)", check=POSITIVE_NUMBER, optional=True)
+    load_peak_users: float | None = setting(
+        None, "load level: background users on a server at its busiest minute (0 = idle, 4 = full at "
+        "the peak; default: the preset world's, recorded in run.json)", check=NON_NEGATIVE_NUMBER, optional=True)
+    target_compute: str | None = setting(
+        None, "C(s_j) of Eq. 4: 'request', the median compute time at ν of the request's own input, "
+        "or 'trace_median', the compute trace's median at ν for every request (default: the preset "
+        "world's; docs/deviations.md D11)", check=one_of(TARGET_COMPUTES), optional=True)
+
+
+#: The world's own settings a run may override (WorldSettings fields of the same name).
+WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute")
+
+
+@dataclass(frozen=True)
+class LearnerOverrides:
+    """SafeTail's hyperparameters that replace its preset's. Each field is named as the
+    :class:`~yafs_safetail.methods.safetail.presets.LearnerConfig` field it replaces; None keeps
+    the preset's. The run is then no longer the preset's configuration, and ``run.json`` and
+    ``summary.md`` say so."""
+
+    learning_rate: float | None = setting(
+        None, "Adam's learning rate for SafeTail instead of the preset's (e.g. the paper preset's "
+        "network with tuned's 1e-3); the run is then no longer the preset's, and run.json and "
+        "summary.md say so", check=POSITIVE_NUMBER, optional=True)
+
+
+@dataclass(frozen=True)
+class Output:
+    """Where the run writes and how it runs. Only which files the folder holds (YAFS CSVs,
+    figures) changes the results; the rest never does."""
+
+    out_dir: Path = setting(Path("results/uc1"), "results folder, written only when the run succeeds; "
+                            "never replaced unless --overwrite", changes_results=False, flag="--out")
+    write_yafs_csv: bool = setting(False, "also write each method's YAFS result CSVs under yafs/ (~70 MB for UC1)",
+                                   check=BOOLEAN, flag="--yafs-csv", action="store_true")
+    figures: bool = setting(True, "skip the figures", check=BOOLEAN, flag="--no-figures", action="store_false")
+    progress: bool = setting(True, "show progress bars on stderr (the phases are logged either way)",
+                             changes_results=False, check=BOOLEAN, flag="")
+    command: str = setting("", "the command line, recorded in run.json", changes_results=False, flag="")
+    workers: int = setting(2, "processes: the baselines are tested in workers-1 other processes while "
+                           "SafeTail trains (default 2; 1 = one process; same results)",
+                           changes_results=False, check=POSITIVE_INTEGER)
+    overwrite: bool = setting(False, "replace an earlier results folder at --out (only a results folder)",
+                              changes_results=False, check=BOOLEAN, action="store_true")
+    force: bool = setting(False, "run a budget beyond the limits (10 GB of results or 4 GB of memory)",
+                          changes_results=False, check=BOOLEAN, action="store_true")
+    run_id: str = setting("", "the campaign's identifier of this configuration, recorded in run.json as "
+                          "campaign_run_id (runs.campaign); empty outside campaigns",
+                          changes_results=False, flag="")
+    resume: bool = setting(False, "continue an interrupted run's training from its checkpoint (give the "
+                           "same options; the results equal an uninterrupted run's)",
+                           changes_results=False, check=BOOLEAN, action="store_true")
+    checkpoint_every_s: float | None = setting(
+        60.0, "wall-clock seconds between two training checkpoints, kept beside --out as "
+        ".<name>.checkpoint until the run ends (default 60)",
+        changes_results=False, check=NON_NEGATIVE_NUMBER, optional=True)
+
+
+@dataclass(frozen=True)
+class ExperimentConfig(Output, LearnerOverrides, WorldSetup, Task):
+    """Everything one run depends on: :class:`Task`, :class:`WorldSetup`,
+    :class:`LearnerOverrides` and :class:`Output` together (their fields, in that order). The
+    same configuration gives identical results files."""
+
+
+#: The groups of :class:`ExperimentConfig`, in the order a reader meets them.
+GROUPS: tuple[type, ...] = (Task, WorldSetup, LearnerOverrides, Output)
+#: Every field a run's results may depend on (the run id hashes exactly these).
+RESULT_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig) if setting_of(f).changes_results)
+#: Fields that say where a run goes and how it shows itself, never what it computes.
+RUNTIME_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig)
+                                        if not setting_of(f).changes_results)
+
+
+# ----------------------------------------------------------------------------- derived
+
+
+def _fields_of(config_class: type, only: Iterable[str] | None,
+               exclude: Iterable[str] = ()) -> list[dataclasses.Field[Any]]:
+    every = {f.name: f for f in fields(config_class)}
+    if only is None:
+        left_out = set(exclude)
+        return [f for f in every.values()
+                if f.name not in left_out and _SETTING in f.metadata and setting_of(f).option(f.name)]
+    unknown = [name for name in only if name not in every]
+    if unknown:
+        raise TypeError(f"{config_class.__name__} has no field {unknown[0]!r}")
+    return [every[name] for name in only]
+
+
+def add_options(parser: argparse._ActionsContainer, config_class: type = ExperimentConfig,
+                only: Iterable[str] | None = None, exclude: Iterable[str] = (),
+                **changes: Mapping[str, Any]) -> None:
+    """Add the command-line options of a configuration's fields to ``parser``.
+
+    Each option's destination is the field's name, so :func:`config_from_args` can read it.
+
+    Args:
+        parser: the parser (or an argument group of it).
+        config_class: a dataclass whose fields were declared with :func:`setting`.
+        only: the fields to add, in this order (None: every field that has an option).
+        exclude: with ``only=None``, fields not to add (a script adding the rest of the fields,
+            so that a field declared later becomes its option too).
+        changes: per field, argparse keywords that differ in this script (``default``,
+            ``help``, ``required``, ``type``...).
+    """
+    for item in _fields_of(config_class, only, exclude):
+        about = setting_of(item)
+        flag = about.option(item.name)
+        if not flag:
+            raise TypeError(f"{item.name}: has no command-line option")
+        keywords: dict[str, Any] = {"dest": item.name, "help": about.help}
+        if about.action in ("store_true", "store_false"):
+            keywords["action"] = about.action
+        else:
+            keywords["default"] = item.default
+            if about.action == "append":
+                keywords.update(action="append", default=[])
+            elif about.check is not None and about.check.choices is not None:
+                keywords["choices"] = about.check.choices
+                if about.check.parse is not None:
+                    keywords["type"] = about.check.parse
+            elif about.check is not None and about.check.parse is not None:
+                keywords["type"] = about.check.parse
+            elif item.type in ("Path", "Path | None"):
+                keywords["type"] = Path
+            if about.metavar is not None:
+                keywords["metavar"] = about.metavar
+            elif "choices" not in keywords:  # named after the option, as argparse would
+                keywords["metavar"] = flag.lstrip("-").replace("-", "_").upper()
+        keywords.update(changes.get(item.name, {}))
+        parser.add_argument(flag, **keywords)
+
+
+def config_from_args(args: argparse.Namespace, config_class: type = ExperimentConfig,
+                     **values: Any) -> Any:
+    """A configuration from parsed options: every field :func:`add_options` added, then
+    ``values`` (what the script sets itself: the command, the output folder...)."""
+    found: dict[str, Any] = {}
+    for item in fields(config_class):
+        if item.name in values or not hasattr(args, item.name):
+            continue
+        value = getattr(args, item.name)
+        convert = setting_of(item).from_cli
+        found[item.name] = value if convert is None else convert(value)
+    return config_class(**found, **values)
+
+
+def check_config(config: Any, style: str = "option") -> None:
+    """Check every field of a configuration against its :class:`Setting`.
+
+    Args:
+        config: a dataclass whose fields were declared with :func:`setting`.
+        style: how errors name a field: ``"option"`` (``--steps-scale``, for runs) or
+            ``"field"`` (``steps_scale``, for Python APIs such as the Gymnasium environment).
+
+    Raises:
+        ExperimentError: the first bad field (one line: its name, what it accepts, its value).
+    """
+    for item in fields(config):
+        about = setting_of(item)
+        value = getattr(config, item.name)
+        if about.check is None or (value is None and about.optional):
+            continue
+        if not about.check.accepts(value):
+            name = about.option(item.name) if style == "option" and about.option(item.name) else item.name
+            raise ExperimentError(f"{name}: expected {about.check.what}, got {value!r}")
+
+
+def learner_overrides(config: LearnerOverrides) -> dict[str, Any]:
+    """The learner hyperparameters this configuration sets (field: value), for ``run.json``."""
+    return {item.name: getattr(config, item.name) for item in fields(LearnerOverrides)
+            if getattr(config, item.name) is not None}
+
+
+def learner_config(config: ExperimentConfig) -> tuple[LearnerConfig, LearnerConfig]:
+    """The preset at full budget, and the learner this run trains: the preset with the run's
+    training steps and :class:`LearnerOverrides` applied.
+
+    Raises:
+        ValueError: an unknown preset or use case.
+    """
+    full = get_preset(config.preset, config.use_case)
+    learner = get_preset(config.preset, config.use_case,
+                         train_steps=scaled_steps(full.train_steps, config.steps_scale))
+    overrides = learner_overrides(config)
+    # A number the user gave as an integer is still the float hyperparameter the preset has.
+    typed = {name: type(getattr(learner, name))(value) for name, value in overrides.items()}
+    return full, dataclasses.replace(learner, **typed)

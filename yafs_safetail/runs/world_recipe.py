@@ -1,0 +1,108 @@
+"""The one recipe for a run's world: from a configuration to the pre-drawn world of a phase.
+
+The experiment (``runs.experiment``) and the Gymnasium environment (``sim.env``) both make their
+worlds here, so a setting that changes the world (the preset's world, ``--target-latency-s``,
+``--load-peak-users``, ``--target-compute``, the topology...) changes it the same way in both.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from yafs_safetail.edge.calibration import CalibrationError, WorldSettings, world_settings
+from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
+from yafs_safetail.edge.scenario import EdgeScenario
+from yafs_safetail.edge.usecases import UseCase, get_use_case
+from yafs_safetail.edge.world import EdgeWorld, build_world
+from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, LearnerConfig, scaled_steps
+from yafs_safetail.runs.config import (
+    WORLD_OVERRIDES,
+    ExperimentConfig,
+    ExperimentError,
+    check_config,
+    learner_config,
+    setting_of,
+)
+
+#: The phases a run's worlds are drawn for (independent random streams).
+TRAIN, TEST = "train", "test"
+
+
+@dataclass(frozen=True)
+class WorldRecipe:
+    """Everything a run's worlds are drawn from, read and checked once.
+
+    Attributes:
+        use_case: the use case.
+        inputs: its traces and compute model.
+        scenario: the topology and placement, checked against the traces.
+        settings: the world's settings: the preset's world (or the configuration's own), with
+            the run's overrides applied.
+        overrides: the overrides that changed the world (an option repeating the world's own
+            value is left out), for ``run.json``.
+        full_preset: the learner preset at full budget.
+        learner: the learner of this run (its training budget and hyperparameter overrides).
+        test_steps: the test phase's requests.
+    """
+
+    use_case: UseCase
+    inputs: TraceInputs
+    scenario: EdgeScenario
+    settings: WorldSettings
+    full_preset: LearnerConfig
+    learner: LearnerConfig
+    test_steps: int
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    def n_steps(self, phase: str) -> int:
+        """The requests of ``phase`` (``"train"``: the learner's budget; else the test's)."""
+        return self.learner.train_steps if phase == TRAIN else self.test_steps
+
+    def make_world(self, phase: str, seed: int) -> EdgeWorld:
+        """The world of ``phase`` drawn from ``seed`` (every method of the phase replays it)."""
+        return build_world(self.scenario, self.use_case, self.inputs, self.n_steps(phase), seed=seed,
+                           phase=phase, episode_steps=self.learner.episode_steps, settings=self.settings)
+
+
+def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe:
+    """Check the configuration's fields and read what its worlds are drawn from.
+
+    Args:
+        config: the run's configuration.
+        style: how errors name a setting (``"option"``: ``--target-latency-s``; ``"field"``:
+            ``target_latency_s``), as :func:`~yafs_safetail.runs.config.check_config`.
+
+    Raises:
+        ValueError: a bad setting or input file (one line naming it).
+    """
+    check_config(config, style)
+    use_case = get_use_case(config.use_case)
+    full, learner = learner_config(config)
+    inputs = load_inputs(use_case, config.traces_dir)
+    scenario = load_scenario_for(inputs, Path(config.topology), Path(config.placement))
+    settings = config.world or world_settings(PRESET_WORLDS[config.preset])
+    overrides: dict[str, Any] = {}
+    by_name = {item.name: item for item in dataclasses.fields(config)}
+    for name in WORLD_OVERRIDES:  # the run's own options over the world's
+        value = getattr(config, name)
+        if value is None:
+            continue
+        try:
+            changed = dataclasses.replace(settings, **{name: value})
+        except CalibrationError:
+            label = setting_of(by_name[name]).option(name) if style == "option" else name
+            raise ExperimentError(f"{label}: {value!r} is out of range") from None
+        if changed != settings:  # an option repeating the world's own value leaves it the preset's
+            overrides[name] = value
+        settings = changed
+    return WorldRecipe(use_case=use_case, inputs=inputs, scenario=scenario, settings=settings,
+                       full_preset=full, learner=learner,
+                       test_steps=scaled_steps(full.test_steps, config.steps_scale), overrides=overrides)
+
+
+def make_world(config: ExperimentConfig, phase: str, seed: int | None = None) -> EdgeWorld:
+    """The world of ``phase`` for ``config`` (seed: the configuration's unless given)."""
+    return world_recipe(config).make_world(phase, config.seed if seed is None else seed)
