@@ -36,16 +36,11 @@ from yafs_safetail.cli import (
     add_verbosity_options,
     configure_verbosity,
     distinct_int_list,
-    load_list,
     non_negative_int,
-    positive_float,
     positive_int,
     run_cli,
 )
-from yafs_safetail.contention.run import TARGETS
 from yafs_safetail.contention.sweep import (
-    DEFAULT_SWEEP_METHODS,
-    DEFAULT_VALUE_NETWORKS,
     SweepConfig,
     checks_markdown,
     load_point_specs,
@@ -56,8 +51,6 @@ from yafs_safetail.contention.sweep import (
 from yafs_safetail.contention.world import LINK_MODELS, ContentionConfig, ContentionError
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.methods.registry import make_baseline
-from yafs_safetail.methods.safetail.policy import SAFETAIL_DISPATCH
-from yafs_safetail.methods.safetail.presets import OBJECTIVES, PRESET_NAMES
 from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.runs.campaign import (
     STATE_FILE,
@@ -65,6 +58,7 @@ from yafs_safetail.runs.campaign import (
     engine_free_command,
     run_campaign,
 )
+from yafs_safetail.runs.config import add_options, config_from_args
 from yafs_safetail.runs.grid import RunSpec
 from yafs_safetail.runs.output import SWEEP_FILE
 
@@ -105,8 +99,8 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
     write_text_atomic(folder / "run.json", json.dumps({
         "package_version": __version__, "command": command, "kind": SWEEP_KIND,
         "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": seed,
-        "steps_scale": args.steps_scale, "preset": args.preset, "reward": config.safetail_reward, "target": args.target,
-        "learner": args.learner, "safetail_dispatch": args.safetail_dispatch,
+        "steps_scale": config.steps_scale, "preset": config.preset, "reward": config.safetail_reward,
+        "target": config.target, "learner": config.learner, "safetail_dispatch": config.dispatch,
         "servers": args.servers, "cancel": not args.no_cancel, "background": args.background, "links": args.links,
         "methods": list(config.methods), "safetail": config.safetail, "train_requests": config.train_requests,
         "test_requests": config.test_requests, "value_networks": config.n_value_networks,
@@ -121,8 +115,8 @@ def _write_csv(path: Path, frame: pd.DataFrame) -> None:
 
 def _safetail_line(args: argparse.Namespace, config: SweepConfig) -> str:
     networks = f" ({config.n_value_networks} networks averaged)" if config.n_value_networks > 1 else ""
-    return (f"SafeTail: preset `{args.preset}`, learner `{args.learner}`{networks}, "
-            f"reward `{config.safetail_reward}`, target `{args.target}`, dispatch `{args.safetail_dispatch}`.\n\n")
+    return (f"SafeTail: preset `{config.preset}`, learner `{config.learner}`{networks}, "
+            f"reward `{config.safetail_reward}`, target `{config.target}`, dispatch `{config.dispatch}`.\n\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -130,37 +124,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--uc", type=int, choices=(1, 2, 3), default=1, help="use case (default 1)")
     parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
-    parser.add_argument("--loads", type=load_list, default=(0.1, 0.3, 0.5, 0.7, 0.9),
-                        help="offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)")
+    add_options(parser, SweepConfig, only=("loads",))
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
     seeds.add_argument("--seeds", type=distinct_int_list,
                        help="several distinct seeds, comma-separated: a sweep per seed in OUT/seed-<S>/, "
                             "compared in OUT/SEEDS.md")
-    parser.add_argument("--steps-scale", type=positive_float, default=1.0,
-                        help="scales SafeTail's training requests and the 20,000 test requests per load")
-    parser.add_argument("--test-requests", type=positive_int, default=None,
-                        help="test requests per load (default 20,000 × --steps-scale): more decide each p99 "
-                             "more closely")
-    parser.add_argument("--preset", choices=PRESET_NAMES, default="paper", help="SafeTail's preset (default paper)")
-    parser.add_argument("--reward", choices=("paper", "no-free-miss"), default="paper",
-                        help="SafeTail's reward: Eq. 5 (default) or Eq. 5 without case 3's free miss "
-                             "with all servers (docs/contention.md)")
-    parser.add_argument("--target", choices=TARGETS, default="eq4",
-                        help="the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
-                             "observed-load (its compute term at the servers' load seen at dispatch; "
-                             "docs/deviations.md D12)")
-    parser.add_argument("--learner", choices=OBJECTIVES, default="target-vector",
-                        help="SafeTail's training objective: target-vector (§III, default) or value (the "
-                             "same network predicting each action's latency, its copies priced at dispatch; "
-                             "docs/deviations.md D13)")
-    parser.add_argument("--value-networks", type=positive_int, default=None,
-                        help="with --learner value: how many networks' predictions SafeTail averages "
-                             f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)")
-    parser.add_argument("--safetail-dispatch", choices=SAFETAIL_DISPATCH, default="all",
-                        help="how SafeTail's subset is sent: all at once (default, the paper) or tied "
-                             "(cancelled once one copy starts running, as Tied; with --learner value, "
-                             "at least two copies)")
+    # The sweep's own settings, each declared once in contention.sweep.SweepConfig.
+    add_options(parser, SweepConfig, only=("steps_scale", "test_requests_per_load", "preset", "reward", "target",
+                                           "learner", "value_networks", "dispatch"))
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
@@ -172,9 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--user-conditions", default="topology",
                         help="each user's distance condition per server: topology (default), generated "
                              "(the topology's ±1 per user and server) or a JSON file (docs/contention.md)")
-    parser.add_argument("--methods", default=",".join(DEFAULT_SWEEP_METHODS),
-                        help="fixed methods, comma-separated (default: all)")
-    parser.add_argument("--no-safetail", action="store_true", help="fixed methods only")
+    add_options(parser, SweepConfig, only=("methods", "safetail"))
     parser.add_argument("--topology", type=Path, default=DEFAULT_TOPOLOGY, help="topology JSON")
     parser.add_argument("--placement", type=Path, default=DEFAULT_PLACEMENT, help="placement JSON")
     parser.add_argument("--out", type=Path, required=True, help="new output folder")
@@ -184,26 +154,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)
-    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    for name in methods:  # unknown names fail before anything runs
+    for name in args.methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
     if args.value_networks is not None and args.learner != "value":
         raise ContentionError(f"--value-networks {args.value_networks}: only with --learner value")
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     several = args.seeds is not None
-    config = SweepConfig(
+    config: SweepConfig = config_from_args(
+        args, SweepConfig,
         base=ContentionConfig(use_case=args.uc, seed=seed_list[0], users=args.users,
                               queue=args.servers == "queue", cancel=not args.no_cancel,
                               background=args.background, links=args.links, topology=args.topology,
-                              placement=args.placement, user_conditions=args.user_conditions),
-        loads=args.loads, methods=methods, safetail=not args.no_safetail, preset=args.preset,
-        steps_scale=args.steps_scale, reward=args.reward, target=args.target, learner=args.learner,
-        dispatch=args.safetail_dispatch, test_requests_per_load=args.test_requests,
-        value_networks=args.value_networks)
+                              placement=args.placement, user_conditions=args.user_conditions))
     # The seeds' sweeps differ in nothing else.
     configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
     if config.test_requests < 100:
-        flag = "--test-requests" if args.test_requests is not None else f"--steps-scale {args.steps_scale}"
+        flag = "--test-requests" if args.test_requests_per_load is not None else f"--steps-scale {args.steps_scale}"
         raise ContentionError(f"{flag}: {config.test_requests} test requests per load; "
                               "at least 100 are needed for a p99")
     command = engine_free_command("experiments/load_sweep.py", sys.argv[1:] if argv is None else argv)

@@ -21,14 +21,28 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from yafs_safetail.contention.run import SUMMARY_COLUMNS, run_policy, summarise
+from yafs_safetail.cli import load_list
+from yafs_safetail.contention.run import SUMMARY_COLUMNS, TARGETS, run_policy, summarise
 from yafs_safetail.contention.world import ContentionConfig, ContentionError, ContentionWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline
 from yafs_safetail.methods.safetail.policy import SAFETAIL_DISPATCH, SafeTailPolicy
-from yafs_safetail.methods.safetail.presets import OBJECTIVES, get_preset, scaled_steps
+from yafs_safetail.methods.safetail.presets import (
+    OBJECTIVES,
+    PRESET_NAMES,
+    get_preset,
+    scaled_steps,
+)
 from yafs_safetail.results.files import write_text_atomic
+from yafs_safetail.runs.config import (
+    BOOLEAN,
+    POSITIVE_INTEGER,
+    POSITIVE_NUMBER,
+    Check,
+    one_of,
+    setting,
+)
 from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import method_rng
@@ -49,46 +63,55 @@ TEST_REQUESTS = 20_000
 SWEEP_COLUMNS: tuple[str, ...] = ("load", "offered_load", *SUMMARY_COLUMNS, "train_requests")
 
 
+def _method_names(text: str) -> tuple[str, ...]:
+    """``--methods``: comma-separated method names (checked when the sweep builds them)."""
+    return tuple(name.strip() for name in text.split(",") if name.strip())
+
+
+#: The methods a sweep may be given (any baseline name; checked when the policies are built).
+METHOD_NAMES = Check("comma-separated method names",
+                     lambda v: isinstance(v, tuple) and all(isinstance(m, str) for m in v), _method_names)
+#: Offered loads: distinct utilisations in (0, 10).
+LOADS = Check("distinct loads in (0, 10)", lambda v: isinstance(v, tuple) and len(set(v)) == len(v) and all(
+    not isinstance(x, bool) and isinstance(x, float | int) and 0 < x < 10 for x in v), load_list)
+
+
 @dataclass(frozen=True)
 class SweepConfig:
-    """A load sweep.
-
-    Attributes:
-        base: the contention world of every load (its ``load``, ``phase`` and ``n_requests``
-            are set per load and phase).
-        loads: offered utilisations.
-        methods: fixed methods (baseline names).
-        safetail: also train and test SafeTail at each load.
-        preset: SafeTail's learner preset.
-        steps_scale: scales SafeTail's training budget (the preset's) and the test requests.
-        test_requests_per_load: test requests per load, whatever ``steps_scale`` (None:
-            :data:`TEST_REQUESTS` × ``steps_scale``); more requests decide a p99 more closely.
-        reward: SafeTail's reward (``"paper"``, Eq. 5, or ``"no-free-miss"``).
-        target: the τ SafeTail's reward compares with (``"eq4"``, Eq. 4, or ``"observed-load"``,
-            its compute term at the servers' load seen at dispatch; ``contention.run.TARGETS``).
-        learner: SafeTail's objective (``presets.OBJECTIVES``): ``"target-vector"``, §III's, or
-            ``"value"``, the same network predicting each action's latency score, less the
-            known price of its copies when choosing (the latency-cost reward)
-            (docs/deviations.md D13; its reward is always ``"latency-cost"``, so ``reward``
-            stays ``"paper"``).
-        dispatch: how SafeTail's subset is sent: ``"all"`` (the paper) or ``"tied"``
-            (``SafeTailPolicy.dispatch``).
-        value_networks: with the value learner, how many networks' predictions are averaged
-            (``LearnerConfig.n_networks``; None: :data:`DEFAULT_VALUE_NETWORKS`); 1 otherwise.
-    """
+    """A load sweep: the contention world of every load (``base``; its ``load``, ``phase`` and
+    ``n_requests`` are set per load and phase) and the sweep's own settings, each declared once
+    with its help (``runs.config.setting``; ``experiments/load_sweep.py`` derives its options
+    from them). The value learner (``learner="value"``) has its own reward (``"latency-cost"``),
+    so ``reward`` stays ``"paper"`` with it (docs/deviations.md D13)."""
 
     base: ContentionConfig
-    loads: tuple[float, ...]
-    methods: tuple[str, ...] = DEFAULT_SWEEP_METHODS
-    safetail: bool = True
-    preset: str = "paper"
-    steps_scale: float = 1.0
-    reward: str = "paper"
-    target: str = "eq4"
-    learner: str = "target-vector"
-    dispatch: str = "all"
-    test_requests_per_load: int | None = None
-    value_networks: int | None = None
+    loads: tuple[float, ...] = setting((0.1, 0.3, 0.5, 0.7, 0.9),
+                                       "offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)",
+                                       check=LOADS)
+    methods: tuple[str, ...] = setting(DEFAULT_SWEEP_METHODS, "fixed methods, comma-separated (default: all)",
+                                       check=METHOD_NAMES)
+    safetail: bool = setting(True, "fixed methods only", check=BOOLEAN, flag="--no-safetail",
+                             action="store_false")
+    preset: str = setting("paper", "SafeTail's preset (default paper)", check=one_of(PRESET_NAMES))
+    steps_scale: float = setting(1.0, "scales SafeTail's training requests and the 20,000 test requests per load",
+                                 check=POSITIVE_NUMBER)
+    reward: str = setting("paper", "SafeTail's reward: Eq. 5 (default) or Eq. 5 without case 3's free miss "
+                          "with all servers (docs/contention.md)", check=one_of(("paper", "no-free-miss")))
+    target: str = setting("eq4", "the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
+                          "observed-load (its compute term at the servers' load seen at dispatch; "
+                          "docs/deviations.md D12)", check=one_of(TARGETS))
+    learner: str = setting("target-vector", "SafeTail's training objective: target-vector (§III, default) or "
+                           "value (the same network predicting each action's latency, its copies priced at "
+                           "dispatch; docs/deviations.md D13)", check=one_of(OBJECTIVES))
+    dispatch: str = setting("all", "how SafeTail's subset is sent: all at once (default, the paper) or tied "
+                            "(cancelled once one copy starts running, as Tied; with --learner value, "
+                            "at least two copies)", check=one_of(SAFETAIL_DISPATCH), flag="--safetail-dispatch")
+    test_requests_per_load: int | None = setting(
+        None, "test requests per load (default 20,000 × --steps-scale): more decide each p99 more closely",
+        check=POSITIVE_INTEGER, flag="--test-requests", optional=True)
+    value_networks: int | None = setting(
+        None, "with --learner value: how many networks' predictions SafeTail averages "
+        f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)", check=POSITIVE_INTEGER, optional=True)
 
     def __post_init__(self) -> None:
         n_test = self.test_requests_per_load
