@@ -3,6 +3,10 @@
 Names: ``SafeTail``, ``Oracle``, ``Rand-x``, ``MinLoad-x``, ``MinProp-x`` (x = the redundancy
 level), ``Hedge`` and ``Tied`` (contention world only), and a user's own policy loaded from ``path/to/file.py:ClassName`` or
 ``package.module:ClassName`` (optionally ``NAME=...`` to name it in results).
+
+Which methods learn: SafeTail, and a user's policy whose class is a
+:class:`~yafs_safetail.methods.learning.LearningPolicy` (:attr:`UserMethod.learns`); a run gives
+each of them a training phase, checkpoints and ``--resume`` (``runs.training``).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import numpy as np
 
 from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
 from yafs_safetail.methods.hedging import Hedge, Tied
+from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import Policy, PolicyError
 
 SAFETAIL = "SafeTail"
@@ -153,4 +158,16 @@ class UserMethod:
             raise PolicyError(f"--method {self.spec}: cannot construct {self.policy_class.__name__}"
                               f"(n_servers, rng): {error}") from None
         policy.name = self.name
+        return policy
+
+    @property
+    def learns(self) -> bool:
+        """Whether the policy learns (a LearningPolicy): a run then trains it before testing."""
+        return issubclass(self.policy_class, LearningPolicy)
+
+    def make_learner(self, n_servers: int, rng: np.random.Generator) -> LearningPolicy:
+        """A fresh instance of a policy that :attr:`learns`, named as on the command line."""
+        policy = self.make(n_servers, rng)
+        if not isinstance(policy, LearningPolicy):
+            raise PolicyError(f"--method {self.spec}: {self.policy_class.__name__} is not a LearningPolicy")
         return policy

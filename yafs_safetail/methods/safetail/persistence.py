@@ -17,6 +17,9 @@ from yafs_safetail.methods.safetail.learner import SafeTailLearner
 from yafs_safetail.methods.safetail.network import fast_forward, masked_squared_error
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
+#: A run's saved SafeTail in its results folder (``SafeTailPolicy.policy_file``); the sidecar
+#: is beside it, with :data:`SIDECAR_SUFFIX` added.
+POLICY_FILE = "policy.keras"
 SIDECAR_SUFFIX = ".json"
 _SIDECAR_VERSION = 1
 

@@ -1,15 +1,22 @@
-"""SafeTail (§III) as a policy: the learned FNN picks each request's subset of edge servers."""
+"""SafeTail (§III) as a policy: the learned FNN picks each request's subset of edge servers.
+
+It is a :class:`~yafs_safetail.methods.learning.LearningPolicy`: a run trains, checkpoints,
+saves and resumes it as it does any user's learner.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.methods.policy import Policy, PolicyError
+from yafs_safetail.methods.learning import LearningPolicy
+from yafs_safetail.methods.policy import PolicyError
+from yafs_safetail.methods.safetail.persistence import POLICY_FILE
 from yafs_safetail.methods.safetail.reward import (
     REWARD_NAMES,
     REWARDS,
@@ -24,6 +31,9 @@ from yafs_safetail.methods.safetail.spaces import (
 )
 from yafs_safetail.record import RequestRecord
 
+if TYPE_CHECKING:
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+
 #: How SafeTail's chosen subset can be dispatched (``Policy.dispatch``).
 SAFETAIL_DISPATCH = ("all", "tied")
 #: The fewest copies the value learner's greedy choice sends as a tied request (when n >= 2).
@@ -33,7 +43,7 @@ SAFETAIL_DISPATCH = ("all", "tied")
 TIED_MIN_COPIES = 2
 
 
-class SafeTailPolicy(Policy):
+class SafeTailPolicy(LearningPolicy):
     """ε-greedy choices of a :class:`~yafs_safetail.methods.safetail.learner.SafeTailLearner`.
 
     :meth:`choose` encodes ω^t, asks the learner for an action (Eq. 3: ε-greedy while
@@ -64,9 +74,10 @@ class SafeTailPolicy(Policy):
     Attributes:
         decision_time_s: wall time spent encoding states and choosing actions.
         training_time_s: wall time spent in ``learner.observe`` (storing and training).
+        loaded_from: the saved policy :meth:`load` read, or None (trained in this run).
     """
 
-    def __init__(self, n_servers: int, rng: np.random.Generator, *, learner: Any,
+    def __init__(self, n_servers: int, rng: np.random.Generator, *, learner: SafeTailLearner,
                  scales: StateScales, training: bool, reward_name: str = "paper",
                  dispatch: str = "all") -> None:
         if learner.n_servers != n_servers:
@@ -95,6 +106,7 @@ class SafeTailPolicy(Policy):
             self._too_few_copies = np.where(self._membership.sum(axis=1) < TIED_MIN_COPIES, np.inf, 0.0)
         self.decision_time_s = 0.0
         self.training_time_s = 0.0
+        self.loaded_from: Path | None = None
         # Per request in flight: the state, the action, ε, and the price of its copies.
         self._decisions: dict[int, tuple[np.ndarray, int, float, float]] = {}
 
@@ -133,3 +145,55 @@ class SafeTailPolicy(Policy):
             self.learner.observe(state, action, learned)
             self.training_time_s += time.perf_counter() - started
         return dataclasses.replace(outcome, reward=value, epsilon=epsilon)
+
+    # -- LearningPolicy: what a run asks of every learning method -------------------------
+
+    def end_training(self) -> str:
+        return (f"training rounds {self.learner.n_training_rounds}, "
+                f"final ε {self.learner.epsilon:.4f}")
+
+    def policy_file(self) -> str:
+        return POLICY_FILE
+
+    def save(self, path: Path) -> None:
+        """The network as a reproducible ``.keras`` file and its JSON sidecar
+        (``methods.safetail.persistence``)."""
+        self.learner.save(path)
+
+    def load(self, path: Path) -> None:
+        """Evaluate a saved policy: the learner :meth:`save` wrote, for testing only.
+
+        Raises:
+            PolicyFileError: a missing or inconsistent file.
+            PolicyError: a policy for another number of servers.
+        """
+        from yafs_safetail.methods.safetail.learner import SafeTailLearner
+
+        learner = SafeTailLearner.load(path, training=False)
+        if learner.n_servers != self.n_servers:
+            raise PolicyError(f"SafeTail: {path} is for {learner.n_servers} servers, the topology "
+                              f"has {self.n_servers}")
+        self.learner = learner
+        self.loaded_from = Path(path)
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """The learner's whole training state (``SafeTailLearner.training_state``)."""
+        return self.learner.training_state()
+
+    def restore_checkpoint_state(self, state: object) -> None:
+        if not isinstance(state, dict):
+            raise PolicyError(f"SafeTail: a checkpoint state is a dict, got {type(state).__name__}")
+        self.learner.restore_training_state(state)
+
+    def run_json_fields(self) -> dict[str, Any]:
+        """The run's preset and β (the learner's settings: a saved policy's own), the learner's
+        settings, what training did, and where the policy comes from."""
+        config = self.learner.config
+        return {
+            "preset": config.name,
+            "beta": config.beta,
+            "learner": config.to_dict(),
+            "training_rounds": self.learner.n_training_rounds,
+            "final_epsilon": self.learner.epsilon,
+            "policy_source": str(self.loaded_from) if self.loaded_from else POLICY_FILE,
+        }
