@@ -170,24 +170,24 @@ def test_a_run_interrupted_while_training_resumes_from_its_checkpoint(uncut, tmp
                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     import dataclasses
 
-    from yafs_safetail.runs import experiment
+    from yafs_safetail.runs import checkpoint, experiment
     from yafs_safetail.runs.checkpoint import checkpoint_folder
 
     reference, specs, _, _ = uncut
     out = tmp_path / "interrupted"
     shutil.copytree(reference / specs[0].name, out / specs[0].name)
     # The second run was stopped after its first training checkpoint.
-    real_write = experiment.write_checkpoint
+    real_write = checkpoint.write_checkpoint
 
     def write_then_stop(target, checkpoint):  # type: ignore[no-untyped-def]
         real_write(target, checkpoint)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(experiment, "write_checkpoint", write_then_stop)
+    monkeypatch.setattr(checkpoint, "write_checkpoint", write_then_stop)
     config = dataclasses.replace(make_config(specs[1], out / specs[1].name), checkpoint_every_s=0.0)
     with pytest.raises(KeyboardInterrupt):
         experiment.run_experiment(config)
-    monkeypatch.setattr(experiment, "write_checkpoint", real_write)
+    monkeypatch.setattr(checkpoint, "write_checkpoint", real_write)
     assert checkpoint_folder((out / specs[1].name).resolve()).is_dir()
     result = run_campaign(specs, out, stream=io.StringIO())
     assert [r.status for r in result.runs] == [EARLIER, "done"]

@@ -15,9 +15,8 @@ from test_run_safety import one_error_line, run, snapshot, start, wait_for
 
 from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
 from yafs_safetail.runs import checkpoint as checkpoint_module
-from yafs_safetail.runs import experiment
 from yafs_safetail.runs.checkpoint import CHECKPOINT_FILE, checkpoint_folder
-from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
+from yafs_safetail.runs.experiment import CHECKPOINT_CHUNK_STEPS, ExperimentConfig, run_experiment
 
 #: A budget whose training phase has several checkpoint chances (one per 100 requests).
 SMALL = ["--steps-scale", "0.05", "--redundancy", "1", "--no-figures", "--quiet", "--workers", "1"]
@@ -70,22 +69,23 @@ def test_stopped_after_any_checkpoint_resumes_to_the_same_results(tmp_path, monk
     reference = run_experiment(dataclasses.replace(config, out_dir=tmp_path / "reference",
                                                    checkpoint_every_s=None))
     train_steps = scaled_steps(get_preset("paper", 1).train_steps, 0.05)
-    assert train_steps > 4 * experiment.CHECKPOINT_CHUNK_STEPS  # room for a middle checkpoint
+    assert train_steps > 4 * CHECKPOINT_CHUNK_STEPS  # room for a middle checkpoint
     written: list[int] = []
     real_write = checkpoint_module.write_checkpoint
 
     def write_then_stop(target, checkpoint):  # type: ignore[no-untyped-def]
         real_write(target, checkpoint)
-        written.append(checkpoint.next_step)
-        if (stop_after == "last" and checkpoint.next_step == train_steps) or len(written) == stop_after:
+        next_step = checkpoint.methods["SafeTail"].next_step
+        written.append(next_step)
+        if (stop_after == "last" and next_step == train_steps) or len(written) == stop_after:
             raise _Stop
 
-    monkeypatch.setattr(experiment, "write_checkpoint", write_then_stop)
+    monkeypatch.setattr(checkpoint_module, "write_checkpoint", write_then_stop)
     with pytest.raises(_Stop) as stopped:
         run_experiment(config)
     assert any("--resume" in note for note in getattr(stopped.value, "__notes__", []))
     assert not config.out_dir.exists()
-    monkeypatch.setattr(experiment, "write_checkpoint", real_write)
+    monkeypatch.setattr(checkpoint_module, "write_checkpoint", real_write)
     resumed = run_experiment(dataclasses.replace(config, resume=True))
     assert written[-1] > 0
     assert results_of(resumed.out_dir) == results_of(reference.out_dir)

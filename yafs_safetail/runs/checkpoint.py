@@ -1,9 +1,11 @@
-"""Training checkpoints: where an interrupted run's SafeTail training stood, for ``--resume``.
+"""Training checkpoints: where an interrupted run's training stood, for ``--resume``.
 
-While SafeTail trains, the run writes a checkpoint beside its target folder,
-``.<target>.checkpoint/``, at most every ``checkpoint_every_s`` seconds and once more when
-training ends. It holds the learner's whole training state (weights, Adam's slots, replay
-buffer, counters, random generators), the training records so far and the next step. A
+While the run's learning methods train (``runs.training``: SafeTail, then any user's
+learner, one after the other), the run writes a checkpoint beside its target folder,
+``.<target>.checkpoint/``, at most every ``checkpoint_every_s`` seconds and once more when each
+method's training ends. It holds, per learning method trained so far, its whole training
+state (``LearningPolicy.checkpoint_state``: for SafeTail the weights, Adam's slots, replay
+buffer, counters and random generators), its training records so far and its next step. A
 checkpoint is taken only between two requests with no copy running, so a fresh simulation
 started at that step continues the interrupted one exactly: a resumed run writes the same
 results files as an uninterrupted one.
@@ -26,7 +28,6 @@ import pickle
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.runs.output import OutputError
@@ -35,7 +36,8 @@ from yafs_safetail.runs.output import OutputError
 CHECKPOINT_MARKER = ".yafs-safetail-checkpoint"
 CHECKPOINT_FILE = "training.pickle"
 #: Bumped when the checkpoint's contents change: an older checkpoint is refused, not misread.
-CHECKPOINT_FORMAT = 1
+#: 2: one :class:`MethodTraining` per learning method.
+CHECKPOINT_FORMAT = 2
 
 
 class CheckpointError(ValueError):
@@ -43,24 +45,37 @@ class CheckpointError(ValueError):
 
 
 @dataclass
-class TrainingCheckpoint:
-    """Where training stood between two requests.
+class MethodTraining:
+    """Where one learning method's training stood between two requests.
 
     Attributes:
-        run_id: the configuration's identity (:func:`yafs_safetail.runs.grid.config_run_id`).
-        next_step: the training world's step of the next request.
-        learner_state: :meth:`SafeTailLearner.training_state`.
-        records: the training phase's records of steps ``0 .. next_step - 1``.
+        next_step: the training world's step of its next request (the world's length: done).
+        policy_state: :meth:`LearningPolicy.checkpoint_state
+            <yafs_safetail.methods.learning.LearningPolicy.checkpoint_state>`.
+        records: its training records of steps ``0 .. next_step - 1``.
         decision_time_s: the policy's decision time so far (timings only).
         training_time_s: the policy's training time so far (timings only).
     """
 
-    run_id: str
     next_step: int
-    learner_state: dict[str, Any]
+    policy_state: object
     records: list[RequestRecord] = field(default_factory=list)
     decision_time_s: float = 0.0
     training_time_s: float = 0.0
+
+
+@dataclass
+class TrainingCheckpoint:
+    """Where a run's training stood between two requests.
+
+    Attributes:
+        run_id: the configuration's identity (:func:`yafs_safetail.runs.grid.config_run_id`).
+        methods: by method name, in training order, each learning method trained so far (the
+            last one possibly in the middle of its training).
+    """
+
+    run_id: str
+    methods: dict[str, MethodTraining] = field(default_factory=dict)
 
 
 def checkpoint_folder(target: Path) -> Path:

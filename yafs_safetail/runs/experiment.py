@@ -7,9 +7,10 @@ The flow reads top to bottom in :func:`run_experiment`:
    imported or the output is touched;
 2. draw the two phases' worlds (common random numbers: every method of a phase replays the
    same requests, trace rows and per-server draws);
-3. start the other methods' test phase in worker processes (``workers - 1`` of them);
-4. build the learner (or load a saved policy) and train SafeTail for the preset's training
-   steps (ε-greedy, a training round every κ tuples), then test it greedily;
+3. start the test phase of the methods that do not learn in worker processes (``workers - 1``
+   of them; ``runs.workers``);
+4. build the learning methods (``runs.learners``: SafeTail, or its saved policy, and users'
+   learners) and train then test each of them (``runs.phases``, ``runs.training``);
 5. collect every method's rows and write the results folder under a temporary name, then
    rename it into place, so a failed run never leaves half-written results and never destroys
    an earlier run's folder.
@@ -25,11 +26,8 @@ delay hooks and writes the YAFS result CSVs under ``yafs/``.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import logging
-import os
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,31 +37,27 @@ import pandas as pd
 import yafs_safetail
 from yafs_safetail import results
 from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY as DEFAULT_TOPOLOGY  # (re-exported)
-from yafs_safetail.edge.scenario import REPOSITORY, EdgeScenario
+from yafs_safetail.edge.scenario import (
+    REPOSITORY as REPOSITORY,  # imported from here by tests and scripts
+)
+from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
-from yafs_safetail.methods.registry import SAFETAIL, baseline_names, sort_methods
+from yafs_safetail.methods.registry import baseline_names, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import LearnerConfig
-from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, StateScales, state_dim
-from yafs_safetail.record import records_frame
+from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
 from yafs_safetail.runs.budget import check_budget
-from yafs_safetail.runs.checkpoint import (
-    CheckpointError,
-    TrainingCheckpoint,
-    check_checkpoint_place,
-    checkpoint_folder,
-    discard_checkpoint,
-    has_checkpoint,
-    read_checkpoint,
-    write_checkpoint,
-)
+from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint
 from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
+from yafs_safetail.runs.learners import check_learners, make_learners
 from yafs_safetail.runs.output import StagedOutput
+from yafs_safetail.runs.phases import LearnersJob, run_learners, run_other_methods
+from yafs_safetail.runs.provenance import run_metadata
+from yafs_safetail.runs.training import Checkpoints
 from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
 from yafs_safetail.runs.world_recipe import TEST, TRAIN, world_recipe
-from yafs_safetail.sim.runner import Simulation, simulate
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
@@ -171,7 +165,8 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
     started = time.perf_counter()
     output = StagedOutput(Path(config.out_dir), config.overwrite)  # checks the target first
     inputs = _check(config)
-    checkpoints = _Checkpoints.for_run(config, inputs, output.target)
+    check_learners(config, trains=inputs.train_world is not None)
+    checkpoints = Checkpoints.for_run(config, inputs.train_world is not None, output.target)
     checked_s = time.perf_counter() - started
     # Nothing is logged before here: bad input stays one line on stderr, even with --verbose.
     try:
@@ -213,83 +208,43 @@ def _log_start(config: ExperimentConfig, inputs: _Inputs, staging: Path, checked
     log.debug("writing into %s, renamed to %s when the run succeeds", staging, config.out_dir)
 
 
-@dataclass
-class _Checkpoints:
-    """A run's training checkpoints: the one it resumes from, and when to write the next."""
-
-    target: Path
-    run_id: str
-    every_s: float
-    resume_from: TrainingCheckpoint | None
-    last_written: float = field(default_factory=time.perf_counter)
-    written: bool = False
-
-    @classmethod
-    def for_run(cls, config: ExperimentConfig, inputs: _Inputs, target: Path) -> _Checkpoints | None:
-        """None when the run does not train or checkpoints are off. Reads the checkpoint to
-        resume from (CheckpointError before anything runs if it does not fit)."""
-        # A resumed training phase cannot append to the YAFS CSVs of the interrupted one.
-        trains = inputs.train_world is not None and not config.write_yafs_csv
-        if config.resume and not trains:
-            raise CheckpointError("--resume: only a training run with no --yafs-csv and no "
-                                  "--policy keeps checkpoints")
-        if not trains or config.checkpoint_every_s is None:
-            return None
-        from yafs_safetail.runs.grid import config_run_id
-
-        check_checkpoint_place(target)
-        run_id = config_run_id(config)
-        resume_from = read_checkpoint(target, run_id) if config.resume else None
-        if resume_from is None and has_checkpoint(target):
-            log.warning("%s holds an interrupted run's checkpoint; this run starts over and "
-                        "replaces it (--resume continues it)", checkpoint_folder(target))
-        return cls(target, run_id, float(config.checkpoint_every_s), resume_from,
-                   written=resume_from is not None)
-
-    def due(self) -> bool:
-        """Whether the next chance should write a checkpoint (``every_s`` has passed)."""
-        return time.perf_counter() - self.last_written >= self.every_s
-
-    def write(self, policy: Any, next_step: int, records: list[Any], force: bool = False) -> None:
-        if not (force or self.due()):
-            return
-        # Set first: a kill during the write leaves the previous checkpoint or this one, both
-        # of which --resume continues.
-        self.written = True
-        write_checkpoint(self.target, TrainingCheckpoint(
-            run_id=self.run_id, next_step=next_step, learner_state=policy.learner.training_state(),
-            records=list(records), decision_time_s=policy.decision_time_s,
-            training_time_s=policy.training_time_s))
-        self.last_written = time.perf_counter()
-
-
 def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
               timings: dict[str, float], started: float,
-              checkpoints: _Checkpoints | None) -> pd.DataFrame:
+              checkpoints: Checkpoints | None) -> pd.DataFrame:
     """Steps 3 to 5 into the staging folder; returns the summary."""
     yafs_dir = staging / YAFS_DIR if config.write_yafs_csv else None
     if yafs_dir is not None:
         yafs_dir.mkdir()
     prefix = f"UC{inputs.use_case.number}"
-    job = MethodsJob(
-        names=tuple(baseline_names(config.redundancy_levels)), user_methods=config.methods,
+    others = MethodsJob(
+        names=tuple(baseline_names(config.redundancy_levels)),
+        user_methods=tuple(m for m in config.methods if not m.learns),
         seed=config.seed, world=inputs.test_world, step_interval_s=config.step_interval_s,
         yafs_dir=yafs_dir, episode_steps=inputs.learner_config.episode_steps,
         progress_label=f"{prefix} other methods test", bar=config.progress,
     )
-    workers = start_workers(job, config.workers)
+    workers = start_workers(others, config.workers)  # forked before TensorFlow loads
     try:
-        learner, safetail_frames = _safetail(config, inputs, yafs_dir, timings, started, checkpoints)
-        other_frames = _other_methods(job, workers, timings)
+        with Phase(f"{prefix} learning methods setup (TensorFlow, the learners)", logger=log):
+            learners = make_learners(config, inputs, timings)
+        timings["setup"] = time.perf_counter() - started
+        learners_job = LearnersJob(
+            train_world=inputs.train_world, test_world=inputs.test_world,
+            step_interval_s=config.step_interval_s, episode_steps=inputs.learner_config.episode_steps,
+            prefix=prefix, yafs_dir=yafs_dir, bar=config.progress, chunk_steps=CHECKPOINT_CHUNK_STEPS)
+        learner_frames = run_learners(learners_job, learners, checkpoints, timings)
+        other_frames = run_other_methods(others, workers, timings)
     finally:
         for worker in workers:
             worker.stop()
-    requests = pd.concat([*safetail_frames, *other_frames], ignore_index=True)
-    run = _run_metadata(config, inputs, learner, sort_methods([SAFETAIL, *job.method_names]))
+    requests = pd.concat([*learner_frames, *other_frames], ignore_index=True)
+    run = run_metadata(config, inputs, learners,
+                       sort_methods([*(policy.name for policy in learners), *others.method_names]))
     t0 = time.perf_counter()
     with Phase(f"{prefix} writing results", logger=log):
         summary = results.write_results(staging, requests, run)
-        learner.save(staging / POLICY_FILE)
+        for policy in learners:
+            policy.save(staging / policy.policy_file())
     timings["writing"] = time.perf_counter() - t0
     if config.figures:
         from yafs_safetail.figures import draw_figures
@@ -300,154 +255,3 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
         timings["plotting"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - started
     return summary
-
-
-def _safetail(config: ExperimentConfig, inputs: _Inputs, yafs_dir: Path | None,
-              timings: dict[str, float], started: float,
-              checkpoints: _Checkpoints | None) -> tuple[Any, list[pd.DataFrame]]:
-    """Build or load the learner; train SafeTail (unless evaluating a saved policy; from a
-    checkpoint when resuming), then test it greedily. Returns the learner and SafeTail's rows
-    of both phases."""
-    t0 = time.perf_counter()
-    scenario, use_case = inputs.scenario, inputs.use_case
-    with Phase(f"UC{use_case.number} {SAFETAIL} setup (TensorFlow, the learner)", logger=log):
-        from yafs_safetail.methods.safetail.learner import SafeTailLearner
-        from yafs_safetail.methods.safetail.policy import SafeTailPolicy
-
-        # The learner builds its network with Keras; importing it (and TensorFlow) takes seconds
-        # the first time, so it is done here to show up as its own part of the setup.
-        importlib.import_module("keras")
-        timings["tf_import"] = time.perf_counter() - t0
-        if config.policy is None:
-            learner = SafeTailLearner(
-                scenario.n_servers,
-                state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
-                inputs.learner_config, config.seed,
-                metadata={"use_case": use_case.number, "topology": str(config.topology)},
-            )
-        else:
-            learner = SafeTailLearner.load(config.policy, training=False)
-    timings["setup"] = time.perf_counter() - started
-    policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,
-                            scales=StateScales.for_use_case(use_case.number), training=True)
-    episode_steps = inputs.learner_config.episode_steps
-
-    def phase(world: EdgeWorld, name: str) -> pd.DataFrame:
-        with Phase(f"UC{use_case.number} {SAFETAIL} {name}", world.n_steps, bar=config.progress,
-                   logger=log) as progress:
-            records = simulate(world, policy, config.step_interval_s,
-                               None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_{name}", progress)
-        return records_frame(records, name, episode_steps)
-
-    t0 = time.perf_counter()
-    frames = []
-    if inputs.train_world is not None:
-        frames.append(records_frame(_train(config, inputs, policy, yafs_dir, checkpoints),
-                                    "train", episode_steps))
-        log.info("UC%d %s: training rounds %d, final ε %.4f", use_case.number, SAFETAIL,
-                 learner.n_training_rounds, learner.epsilon)
-    policy.training = False
-    frames.append(phase(inputs.test_world, "test"))
-    timings["decisions"] = policy.decision_time_s
-    timings["training"] = policy.training_time_s
-    # Simulation time is reported without the learner's share.
-    timings["simulation"] = time.perf_counter() - t0 - policy.decision_time_s - policy.training_time_s
-    return learner, frames
-
-
-def _train(config: ExperimentConfig, inputs: _Inputs, policy: Any, yafs_dir: Path | None,
-           checkpoints: _Checkpoints | None) -> list[Any]:
-    """SafeTail's training phase, from its checkpoint when resuming; returns every record."""
-    world = inputs.train_world
-    assert world is not None
-    path = None if yafs_dir is None else yafs_dir / f"{SAFETAIL}_train"
-    with Phase(f"UC{inputs.use_case.number} {SAFETAIL} train", world.n_steps, bar=config.progress,
-               logger=log) as progress:
-        if checkpoints is None:
-            return simulate(world, policy, config.step_interval_s, path, progress)
-        earlier: list[Any] = []
-        first_step = 0
-        if checkpoints.resume_from is not None:
-            state = checkpoints.resume_from
-            policy.learner.restore_training_state(state.learner_state)
-            policy.decision_time_s, policy.training_time_s = state.decision_time_s, state.training_time_s
-            earlier, first_step = list(state.records), state.next_step
-            log.info("UC%d %s train: resumed from the checkpoint at request %d", inputs.use_case.number,
-                     SAFETAIL, first_step)
-            progress.update(first_step)
-
-        def after_chunk(simulation: Simulation) -> None:
-            # Only between two requests with nothing running can a fresh simulation take over.
-            # Checked before the rows are joined: most chances write nothing.
-            if simulation.quiescent and checkpoints.due():
-                checkpoints.write(policy, simulation.next_step, earlier + simulation.records)
-
-        records = earlier + simulate(world, policy, config.step_interval_s, path, progress,
-                                     first_step=first_step, after_chunk=after_chunk,
-                                     chunk_steps=CHECKPOINT_CHUNK_STEPS)
-        checkpoints.write(policy, world.n_steps, records, force=True)  # a kill while testing resumes here
-        return records
-
-
-def _other_methods(job: MethodsJob, workers: Sequence[Any], timings: dict[str, float]) -> list[pd.DataFrame]:
-    """The other methods' test rows, in report order (run here when no worker ran them)."""
-    by_name: dict[str, pd.DataFrame] = {}
-    if workers:
-        t0 = time.perf_counter()
-        log.debug("waiting for %d worker process(es)", len(workers))
-        for worker in workers:
-            frames, wall_s = worker.result()
-            by_name.update(zip(worker.job.method_names, frames, strict=True))
-            timings["baselines_in_workers"] = max(timings["baselines_in_workers"], wall_s)
-        timings["waiting_for_workers"] = time.perf_counter() - t0
-    else:
-        frames, wall_s = job.run()
-        by_name.update(zip(job.method_names, frames, strict=True))
-        timings["simulation"] += wall_s
-    return [by_name[name] for name in job.method_names]
-
-
-def _recorded_path(path: Path) -> str:
-    """A file's path as run.json records it: relative to the project when inside it."""
-    return os.path.relpath(path, REPOSITORY) if path.resolve().is_relative_to(REPOSITORY) else str(path)
-
-
-def _run_metadata(config: ExperimentConfig, inputs: _Inputs, learner: Any,
-                  methods: list[str]) -> results.RunMetadata:
-    test_world = inputs.test_world
-    topology = Path(config.topology)
-    return results.RunMetadata(
-        use_case=inputs.use_case.number,
-        use_case_name=inputs.use_case.description,
-        preset=learner.config.name,
-        seed=config.seed,
-        n_servers=inputs.scenario.n_servers,
-        beta=learner.config.beta,
-        train_steps=0 if inputs.train_world is None else inputs.learner_config.train_steps,
-        test_steps=test_world.n_steps,
-        topology=_recorded_path(topology),
-        methods=methods,
-        package_version=yafs_safetail.__version__,
-        command=config.command,
-        extra={
-            "steps_scale": config.steps_scale,
-            "step_interval_s": config.step_interval_s,
-            "episode_steps": inputs.learner_config.episode_steps,
-            "fallback_latency_s": test_world.fallback_latency_s,
-            "nu": test_world.nu,
-            "world": test_world.settings.to_dict(),
-            results.PLACEMENT_KEY: _recorded_path(Path(config.placement)),
-            # Only when set, as learning_rate_override: summary.md scores no closeness to the
-            # paper in a world the run's options changed.
-            **({results.WORLD_OVERRIDES_KEY: dict(inputs.world_overrides)}
-               if inputs.world_overrides else {}),
-            "learner": learner.config.to_dict(),
-            "training_rounds": learner.n_training_rounds,
-            "final_epsilon": learner.epsilon,
-            "policy_source": str(config.policy) if config.policy else POLICY_FILE,
-            # Only when set, so that a run with the preset's own rate is what it always was.
-            **({results.LEARNING_RATE_OVERRIDE_KEY: float(config.learning_rate)}
-               if config.learning_rate is not None else {}),
-            **({"campaign_run_id": config.run_id} if config.run_id else {}),
-        },
-    )

@@ -1,0 +1,97 @@
+"""What a run's ``run.json`` records: its settings, its world, and what each learner adds."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yafs_safetail
+from yafs_safetail import results
+from yafs_safetail.edge.scenario import REPOSITORY
+from yafs_safetail.methods.learning import LearningPolicy
+from yafs_safetail.methods.policy import PolicyError
+
+if TYPE_CHECKING:
+    from yafs_safetail.runs.experiment import ExperimentConfig, _Inputs
+
+#: ``run.json`` keys of the run itself that a learner's fields replace: the run's preset and β
+#: are those of the learner's settings (SafeTail's, which ``--policy`` reads from its file).
+LEARNER_SET_KEYS = ("preset", "beta")
+
+
+def recorded_path(path: Path) -> str:
+    """A file's path as run.json records it: relative to the project when inside it."""
+    return os.path.relpath(path, REPOSITORY) if path.resolve().is_relative_to(REPOSITORY) else str(path)
+
+
+def learners_fields(learners: Sequence[LearningPolicy]) -> dict[str, Any]:
+    """Every learner's :meth:`~LearningPolicy.run_json_fields`, merged.
+
+    Raises:
+        PolicyError: two learners give the same key.
+    """
+    merged: dict[str, Any] = {}
+    owners: dict[str, str] = {}
+    for policy in learners:
+        for key, value in policy.run_json_fields().items():
+            if key in owners:
+                raise PolicyError(f"{policy.name}: run_json_fields() gives {key!r}, which "
+                                  f"{owners[key]} gives too")
+            owners[key] = policy.name
+            merged[key] = value
+    return merged
+
+
+def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[LearningPolicy],
+                 methods: list[str]) -> results.RunMetadata:
+    """The run's ``run.json`` (its learners trained, every method named in ``methods``).
+
+    Raises:
+        PolicyError: a learner's key is one the run records itself.
+    """
+    test_world = inputs.test_world
+    learned = learners_fields(learners)
+    extra: dict[str, Any] = {
+        "steps_scale": config.steps_scale,
+        "step_interval_s": config.step_interval_s,
+        "episode_steps": inputs.learner_config.episode_steps,
+        "fallback_latency_s": test_world.fallback_latency_s,
+        "nu": test_world.nu,
+        "world": test_world.settings.to_dict(),
+        results.PLACEMENT_KEY: recorded_path(Path(config.placement)),
+        # Only when set, as learning_rate_override: summary.md scores no closeness to the
+        # paper in a world the run's options changed.
+        **({results.WORLD_OVERRIDES_KEY: dict(inputs.world_overrides)}
+           if inputs.world_overrides else {}),
+        # Only when set, so that a run with the preset's own rate is what it always was.
+        **({results.LEARNING_RATE_OVERRIDE_KEY: float(config.learning_rate)}
+           if config.learning_rate is not None else {}),
+        **({"campaign_run_id": config.run_id} if config.run_id else {}),
+    }
+    own = [key for key in learned
+           if key in extra or (key in results.RUN_JSON_KEYS and key not in LEARNER_SET_KEYS)]
+    if own:
+        raise PolicyError(f"{_owner_of(learners, own[0])}: run_json_fields() gives {own[0]!r}, "
+                          "which run.json records of the run itself")
+    return results.RunMetadata(
+        use_case=inputs.use_case.number,
+        use_case_name=inputs.use_case.description,
+        preset=learned.pop("preset", config.preset),
+        seed=config.seed,
+        n_servers=inputs.scenario.n_servers,
+        beta=learned.pop("beta", inputs.learner_config.beta),
+        train_steps=0 if inputs.train_world is None else inputs.learner_config.train_steps,
+        test_steps=test_world.n_steps,
+        topology=recorded_path(Path(config.topology)),
+        methods=methods,
+        package_version=yafs_safetail.__version__,
+        command=config.command,
+        extra={**extra, **learned},
+    )
+
+
+def _owner_of(learners: Sequence[LearningPolicy], key: str) -> str:
+    """The name of the learner whose run.json fields hold ``key``."""
+    return next(policy.name for policy in learners if key in policy.run_json_fields())
