@@ -116,7 +116,7 @@ def test_verbose_adds_debug_lines(tmp_path: Path) -> None:
     assert any(re.search(r"worker process \d+ started: Oracle, Rand-1", line) for line in debug)
     assert any(re.search(r"worker process \d+ ended: ", line) for line in debug)
     # Verbose lines name their time and module; the phases are still there.
-    assert re.search(r"^\d\d:\d\d:\d\d info +yafs_safetail\.runs\.experiment: UC1 SafeTail train: done",
+    assert re.search(r"^\d\d:\d\d:\d\d info +yafs_safetail\.runs\.training: UC1 SafeTail train: done",
                      done.stderr, re.MULTILINE)
     # The YAFS core's own debug lines (its event loop) stay out.
     assert "Added control process" not in done.stderr and "Activating" not in done.stderr

@@ -51,7 +51,7 @@ from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
 from yafs_safetail.runs.budget import check_budget
 from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint
 from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
-from yafs_safetail.runs.learners import check_learners, make_learners
+from yafs_safetail.runs.learners import check_learners, learner_names, make_learners
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.phases import LearnersJob, run_learners, run_other_methods
 from yafs_safetail.runs.provenance import run_metadata
@@ -225,7 +225,8 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     )
     workers = start_workers(others, config.workers)  # forked before TensorFlow loads
     try:
-        with Phase(f"{prefix} learning methods setup (TensorFlow, the learners)", logger=log):
+        with Phase(f"{prefix} {', '.join(learner_names(config))} setup (TensorFlow, the learners)",
+                   logger=log):
             learners = make_learners(config, inputs, timings)
         timings["setup"] = time.perf_counter() - started
         learners_job = LearnersJob(

@@ -29,6 +29,11 @@ def users_learners(methods: Sequence[UserMethod]) -> tuple[UserMethod, ...]:
     return tuple(method for method in methods if method.learns)
 
 
+def learner_names(config: ExperimentConfig) -> list[str]:
+    """The names of the run's learning methods, in training order (:func:`make_learners`)."""
+    return [SAFETAIL, *(method.name for method in users_learners(config.methods))]
+
+
 def check_learners(config: ExperimentConfig, trains: bool) -> None:
     """Refuse (PolicyError) a user's learner in a run without a training phase (``--policy``)."""
     learners = users_learners(config.methods)
