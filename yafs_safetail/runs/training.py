@@ -15,7 +15,6 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import Phase
@@ -31,10 +30,9 @@ from yafs_safetail.runs.checkpoint import (
     has_checkpoint,
     read_checkpoint,
 )
+from yafs_safetail.runs.config import ExperimentConfig
+from yafs_safetail.runs.grid import config_run_id
 from yafs_safetail.sim.runner import Simulation, simulate
-
-if TYPE_CHECKING:
-    from yafs_safetail.runs.experiment import ExperimentConfig
 
 log = logging.getLogger(__name__)
 
@@ -72,9 +70,6 @@ class Checkpoints:
                                   "--policy keeps checkpoints")
         if not trains or config.checkpoint_every_s is None:
             return None
-        # Imported here: grid imports runs.experiment, which imports this module.
-        from yafs_safetail.runs.grid import config_run_id
-
         check_checkpoint_place(target)
         run_id = config_run_id(config)
         resume_from = read_checkpoint(target, run_id) if config.resume else None
