@@ -40,17 +40,15 @@ import tempfile
 import time
 from pathlib import Path
 
-REPOSITORY = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPOSITORY / "experiments"))
+import pandas as pd
 
-import pandas as pd  # noqa: E402
-import reproduce_all  # noqa: E402
-
-from yafs_safetail.cli import positive_float  # noqa: E402
-from yafs_safetail.edge.calibration import seed_set  # noqa: E402
-from yafs_safetail.methods.registry import SAFETAIL, parse_method  # noqa: E402
-from yafs_safetail.results import feasibility, fidelity  # noqa: E402
-from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment  # noqa: E402
+from yafs_safetail.cli import positive_float
+from yafs_safetail.commands import reproduce_all
+from yafs_safetail.edge.calibration import seed_set
+from yafs_safetail.methods.registry import SAFETAIL, parse_method
+from yafs_safetail.results import feasibility, fidelity
+from yafs_safetail.results.reproduction import RUN_FOLDER
+from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
 
 #: At least this many of the 23 ratios within ±20% (issue 28).
 RATIOS_GOAL = 19
@@ -82,7 +80,7 @@ def main() -> None:
             sys.exit(failed)
         card = pd.read_csv(out / fidelity.FIDELITY_FILE)
         card = card[card["preset"] == args.preset]
-        worlds = [feasibility.read_world_run(out / reproduce_all.RUN_FOLDER.format(
+        worlds = [feasibility.read_world_run(out / RUN_FOLDER.format(
                       use_case=use_case, preset=args.preset, seed=int(seed)))
                   for use_case in (1, 2, 3) for seed in args.seeds.split(",")]
         # The UC1 default run, timed alone (reproduce_all's runs share the machine's cores).

@@ -1,76 +1,13 @@
 """Choose the `paper` preset's learning rate per use case by the rule of docs/calibration.md.
 
-    python experiments/choose_learning_rate.py                 # the rule as written (~15 min)
-    python experiments/choose_learning_rate.py --uc 1 --steps-scale 0.05 --seeds 1000 --out /tmp/lr
-
-For each use case and each rate of the grid (1e-5 ... 3e-3), trains `paper` at that rate on the
-learner-calibration seeds (seed_sets.json) in the calibrated world and scores the greedy
-policy's mean Eq. 5 reward over its test requests; the highest wins, ties to the smaller rate.
-Writes OUT/learning_rates.csv (every run) and OUT/learning_rates.json (the choice and its
-provenance). The scorecard's numbers never enter. The shipped rates are
-yafs_safetail/methods/safetail/presets.py's PAPER_LEARNING_RATES.
+The command lives in the package, yafs_safetail/commands/choose_learning_rate.py (``yafs-safetail learning-rate`` runs
+the same); ``python experiments/choose_learning_rate.py --help`` lists its options.
 """
 
-from __future__ import annotations
-
-import argparse
-import shlex
 import sys
-from collections.abc import Sequence
-from pathlib import Path
 
-from yafs_safetail.cli import (
-    ArgumentParser,
-    add_verbosity_options,
-    configure_verbosity,
-    int_list,
-    positive_float,
-    positive_float_list,
-    positive_int,
-    run_cli,
-)
-from yafs_safetail.edge.calibration import seed_set
-from yafs_safetail.runs.learning_rate import (
-    RATE_GRID,
-    USE_CASES,
-    LearningRateConfig,
-    LearningRateRunError,
-    choose_learning_rates,
-    main_rows,
-)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = ArgumentParser(prog="choose_learning_rate.py", description=__doc__,
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=int_list, default=USE_CASES, help="use cases (default 1,2,3)")
-    parser.add_argument("--seeds", type=int_list, default=None,
-                        help="learner-calibration seeds (default: seed_sets.json's, 1000-1002)")
-    parser.add_argument("--rates", type=positive_float_list, default=RATE_GRID,
-                        help="the candidate rates (default the rule's grid: "
-                             + ",".join(f"{r:g}" for r in RATE_GRID) + "; another grid is not the rule)")
-    parser.add_argument("--steps-scale", type=positive_float, default=1.0,
-                        help="fraction of the full budget (default 1: the rule as written)")
-    parser.add_argument("--workers", type=positive_int, default=2, help="parallel runs (default 2)")
-    parser.add_argument("--out", type=Path, default=Path("results/learning-rate"),
-                        help="output folder (default results/learning-rate)")
-    add_verbosity_options(parser)
-    args = parser.parse_args(argv)
-    bad = [uc for uc in args.uc if uc not in USE_CASES]
-    if bad:
-        raise LearningRateRunError(f"--uc: {bad[0]} is not a use case (1, 2 or 3)")
-    configure_verbosity(args)
-    command = shlex.join(["python", "experiments/choose_learning_rate.py",
-                          *(sys.argv[1:] if argv is None else argv)])
-    seeds = tuple(seed_set("learner_calibration") if args.seeds is None else args.seeds)
-    document = choose_learning_rates(LearningRateConfig(
-        use_cases=tuple(args.uc), rates=tuple(args.rates), seeds=seeds, steps_scale=args.steps_scale,
-        workers=args.workers, out_dir=args.out, command=command))
-    for line in main_rows(document):
-        print(line)
-    print(f"written: {args.out / 'learning_rates.json'}")
-    return 0
-
+from yafs_safetail.cli import run_cli
+from yafs_safetail.commands.choose_learning_rate import main
 
 if __name__ == "__main__":
     sys.exit(run_cli(main))

@@ -69,7 +69,7 @@ def test_bad_grids_are_one_line_errors(tmp_path: Path) -> None:
 
 def test_engine_options_are_not_recorded_in_the_command() -> None:
     argv = ["--uc", "1", "--workers", "2", "--engine=ray", "--ray-address", "h:1", "--out", "x"]
-    assert campaign.engine_free_command("p.py", argv) == "python p.py --uc 1 --out x"
+    assert campaign.engine_free_command(["python", "p.py"], argv) == "python p.py --uc 1 --out x"
 
 
 def test_each_run_gets_one_process_and_its_run_id(tmp_path: Path) -> None:

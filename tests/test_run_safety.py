@@ -182,12 +182,8 @@ def test_sigkill_leaves_no_orphan_and_the_next_run_clears_its_folder(tmp_path):
 
 
 def run_usecase_module():
-    """experiments/run_usecase.py as a module (the experiments folder is not a package)."""
-    spec = importlib.util.spec_from_file_location("run_usecase_cli", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    """The run command's module (experiments/run_usecase.py runs its main)."""
+    return importlib.import_module("yafs_safetail.commands.run_usecase")
 
 
 def test_the_default_folder_names_preset_seed_and_scale():

@@ -9,7 +9,7 @@ that line. Set ``YAFS_SAFETAIL_DEBUG=1`` to see the traceback instead (for bug r
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import importlib
 import os
 import signal
 import sys
@@ -216,29 +216,35 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     return 0 if code is None else int(code)
 
 
-#: ``yafs-safetail <command>``: the experiment scripts (thin command-line fronts in the project
-#: checkout) and the figures module.
+#: ``yafs-safetail <command>``: the module under yafs_safetail/commands/ that runs it (each has
+#: ``main(argv)``; ``experiments/<module>.py`` in the checkout is the same command) and what it
+#: does. The figures module is the one command outside that package.
 SCRIPT_COMMANDS = {
-    "run": ("experiments/run_usecase.py", "train SafeTail and compare it on one use case"),
-    "reproduce": ("experiments/reproduce_all.py", "every use case over several seeds, one report"),
-    "calibrate": ("experiments/calibrate.py", "fit the unpublished world parameters"),
-    "compare": ("experiments/compare_runs.py", "two results folders side by side, B / A with intervals"),
-    "sweep": ("experiments/load_sweep.py", "many users: every method against the offered load"),
+    "run": ("run_usecase", "train SafeTail and compare it on one use case"),
+    "reproduce": ("reproduce_all", "every use case over several seeds, one report"),
+    "campaign": ("campaign", "a grid of runs, each computed once, resumable"),
+    "calibrate": ("calibrate", "fit the unpublished world parameters"),
+    "learning-rate": ("choose_learning_rate", "choose the paper preset's learning rates by the rule"),
+    "compare": ("compare_runs", "two results folders side by side, B / A with intervals"),
+    "sweep": ("load_sweep", "many users: every method against the offered load"),
 }
-USAGE = "usage: yafs-safetail {run,reproduce,calibrate,compare,sweep,figures} [options]   (each takes --help)"
+USAGE = ("usage: yafs-safetail {" + ",".join([*SCRIPT_COMMANDS, "figures"])
+         + "} [options]   (each takes --help)")
 
 
-def _script_main(relative: str) -> Callable[[Sequence[str] | None], int | None]:
-    from yafs_safetail.edge.scenario import REPOSITORY
+def invocation(script: str) -> list[str]:
+    """The words that started this command, as a run records its command line: ``yafs-safetail
+    run`` under the console command, otherwise ``python <script>`` (``experiments/...``)."""
+    command = _command_prog.get()
+    return command.split() if command is not None else ["python", script]
 
-    path = REPOSITORY / relative
-    if not path.is_file():
-        raise OSError(f"{path}: not found; the commands need the project checkout (pip install -e .)")
-    spec = importlib.util.spec_from_file_location(f"yafs_safetail_command_{path.stem}", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.main
+
+def _command_main(module_name: str) -> Callable[[Sequence[str] | None], int | None]:
+    # Imported only now: ``yafs-safetail --help`` loads no command, and each command module
+    # imports nothing heavy before its arguments are checked.
+    module = importlib.import_module(f"yafs_safetail.commands.{module_name}")
+    command_main: Callable[[Sequence[str] | None], int | None] = module.main
+    return command_main
 
 
 def _with_verbosity_options(
@@ -259,8 +265,8 @@ def _with_verbosity_options(
 def _listing() -> str:
     """The usage line and one line per subcommand."""
     lines = [USAGE]
-    lines += [f"  {name:<10} {what} ({script})" for name, (script, what) in SCRIPT_COMMANDS.items()]
-    lines.append(f"  {'figures':<10} redraw a results folder's figures (python -m yafs_safetail.figures)")
+    lines += [f"  {name:<14} {what} (experiments/{module}.py)" for name, (module, what) in SCRIPT_COMMANDS.items()]
+    lines.append(f"  {'figures':<14} redraw a results folder's figures (python -m yafs_safetail.figures)")
     return "\n".join(lines) + "\n"
 
 
@@ -295,12 +301,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from yafs_safetail.figures import main as figures_main
 
             return run_cli(_with_verbosity_options(figures_main), rest)
-        try:
-            command_main = _script_main(SCRIPT_COMMANDS[command][0])
-        except OSError as error:
-            print(f"error: {error}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        return run_cli(command_main, rest)
+        return run_cli(_command_main(SCRIPT_COMMANDS[command][0]), rest)
     finally:
         _command_prog.reset(token)
 

@@ -26,6 +26,9 @@ from typing import Any
 
 import numpy as np
 
+# What C(s_j) of Eq. 4 is; in defaults.py, since the command line lists them before anything loads.
+from yafs_safetail.defaults import TARGET_COMPUTES as TARGET_COMPUTES
+
 #: The calibrated values and their provenance (written by ``experiments/calibrate.py``).
 CALIBRATION_FILE = Path(__file__).with_name("calibration.json")
 #: Which seeds may choose anything and which only report (docs/calibration.md).
@@ -33,9 +36,6 @@ SEED_SETS_FILE = Path(__file__).with_name("seed_sets.json")
 SEED_SETS = ("world_calibration", "learner_calibration", "held_out", "fresh_held_out")
 
 LOAD_STARTS = ("shared", "per_server")
-#: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
-#: median scaled to the request's own input (docs/deviations.md D11).
-TARGET_COMPUTES = ("trace_median", "request")
 WORLD_NAMES = ("landed", "calibrated", "calibrated-v1")
 
 #: The parameters calibrate.py fits, with the range it searches and what each one means.

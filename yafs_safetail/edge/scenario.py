@@ -9,11 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+# The default files, named here as before (defaults.py: --help shows them before numpy loads).
+from yafs_safetail.defaults import DATA_ROOT
+from yafs_safetail.defaults import DEFAULT_PLACEMENT as DEFAULT_PLACEMENT
+from yafs_safetail.defaults import DEFAULT_TOPOLOGY as DEFAULT_TOPOLOGY
+from yafs_safetail.defaults import default_placement as default_placement
 from yafs_safetail.edge.topology_io import (
     CONDITION_KEY,
     LOAD_DEVICE_KEY,
@@ -26,16 +30,9 @@ from yafs_safetail.edge.topology_io import (
     load_topology,
 )
 
-#: The project's root (topologies/, placements/, traces/ sit beside the package).
-REPOSITORY = Path(__file__).resolve().parents[2]
-#: The paper's setting: five edge servers (§V-A).
-DEFAULT_TOPOLOGY = REPOSITORY / "topologies" / "paper_5servers.json"
-DEFAULT_PLACEMENT = REPOSITORY / "placements" / "paper_5servers.json"
-
-
-def default_placement(topology: Path) -> Path:
-    """The placement that goes with a topology file: ``placements/<its file name>``."""
-    return DEFAULT_PLACEMENT if topology == DEFAULT_TOPOLOGY else DEFAULT_PLACEMENT.parent / topology.name
+#: The folder of the default files (topologies/, placements/, traces/): the project checkout, or
+#: the installed package's copy (defaults.DATA_ROOT). Paths inside it are recorded relative to it.
+REPOSITORY = DATA_ROOT
 
 
 @dataclass(frozen=True)

@@ -15,11 +15,10 @@ from types import MappingProxyType
 import numpy as np
 import pandas as pd
 
+# The default traces/ folder: the checkout's, or the installed package's copy.
+from yafs_safetail.defaults import DEFAULT_TRACE_DIR as DEFAULT_TRACE_DIR
 from yafs_safetail.edge import published as pub
 from yafs_safetail.edge.usecases import USE_CASES
-
-DEFAULT_TRACE_DIR = Path(__file__).resolve().parents[2] / "traces"
-"""The repository's ``traces/`` folder (the package is used from a source checkout)."""
 
 DIRECTIONS = ("uplink", "downlink")
 PROPAGATION_CONDITIONS = tuple(pub.PROPAGATION_RTT_S)

@@ -15,12 +15,10 @@ second campaign off the same folder.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import fcntl
 import json
 import logging
-import shlex
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -28,7 +26,12 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from yafs_safetail.results import write_text_atomic
-from yafs_safetail.runs.engines import ENGINES, RunResult, RunTask, cancel_all, make_engine
+
+# The scripts' engine options, named here as before (engine_options.py imports nothing heavy).
+from yafs_safetail.runs.engine_options import ENGINE_OPTIONS as ENGINE_OPTIONS
+from yafs_safetail.runs.engine_options import add_engine_options as add_engine_options
+from yafs_safetail.runs.engine_options import engine_free_command as engine_free_command
+from yafs_safetail.runs.engines import RunResult, RunTask, cancel_all, make_engine
 from yafs_safetail.runs.grid import RunSpec, code_version
 from yafs_safetail.runs.output import RUN_FILE, is_results_folder, refuse_protected
 
@@ -250,32 +253,3 @@ def _execute(queue: list[RunState], out: Path, runner: Any, command: str, overwr
         runner.close(interrupted)
 
 
-#: Command-line options that choose where runs execute, never what they compute.
-ENGINE_OPTIONS = {"--workers": True, "--engine": True, "--ray-address": True}
-
-
-def add_engine_options(parser: argparse.ArgumentParser) -> None:
-    """``--workers``, ``--engine`` and ``--ray-address`` (shared by every campaign script)."""
-    parser.add_argument("--workers", type=int, default=None,
-                        help="runs at a time (default 1 locally, every CPU of a Ray cluster)")
-    parser.add_argument("--engine", choices=ENGINES, default="local",
-                        help="local worker processes (default) or Ray (pip install -e .[ray])")
-    parser.add_argument("--ray-address", default=None, metavar="HOST:PORT",
-                        help="run on this existing Ray cluster (implies --engine ray)")
-
-
-def engine_free_command(program: str, argv: Sequence[str]) -> str:
-    """The command line without the engine options, as recorded in every run's ``run.json``:
-    the same campaign on another engine or worker count writes the same bytes."""
-    kept: list[str] = []
-    skip = False
-    for arg in argv:
-        if skip:
-            skip = False
-            continue
-        option, eq, _ = arg.partition("=")
-        if option in ENGINE_OPTIONS:
-            skip = not eq and ENGINE_OPTIONS[option]
-            continue
-        kept.append(arg)
-    return shlex.join(["python", program, *kept])

@@ -30,21 +30,27 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+# Only light modules here: the scripts build their parsers and check their arguments from this
+# module before NumPy, pandas, simpy or TensorFlow load (``--help`` answers at once). The
+# defaults and choices come from yafs_safetail.defaults; what runs a configuration is imported
+# where it is used.
 from yafs_safetail import cli
-from yafs_safetail.edge.calibration import TARGET_COMPUTES, WorldSettings
-from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
-from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
-from yafs_safetail.methods.registry import UserMethod
-from yafs_safetail.methods.safetail.presets import (
+from yafs_safetail.defaults import (
+    DEFAULT_PLACEMENT,
+    DEFAULT_STEP_INTERVAL_S,
+    DEFAULT_TOPOLOGY,
+    DEFAULT_TRACE_DIR,
     PRESET_NAMES,
-    LearnerConfig,
-    get_preset,
-    scaled_steps,
+    TARGET_COMPUTES,
 )
-from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
+from yafs_safetail.edge.published import USE_CASES
+
+if TYPE_CHECKING:
+    from yafs_safetail.edge.calibration import WorldSettings
+    from yafs_safetail.methods.registry import UserMethod
+    from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 
 class ExperimentError(ValueError):
@@ -164,6 +170,12 @@ def setting_of(item: dataclasses.Field[Any]) -> Setting:
 # ----------------------------------------------------------------------------- the groups
 
 
+def _user_methods(specs: Sequence[str]) -> tuple[UserMethod, ...]:
+    from yafs_safetail.methods.registry import UserMethod  # NumPy: only once the options parsed
+
+    return tuple(UserMethod(spec) for spec in specs)
+
+
 @dataclass(frozen=True)
 class Task:
     """What to run: which use case, with which learner preset and seed, how long, against what."""
@@ -183,7 +195,7 @@ class Task:
     methods: tuple[UserMethod, ...] = setting(
         (), "add your own Policy to the comparison (also module:Class; repeatable; named after the "
         "class unless NAME= is given)", flag="--method", action="append", metavar="[NAME=]FILE.py:CLASS",
-        from_cli=lambda specs: tuple(UserMethod(spec) for spec in specs))
+        from_cli=_user_methods)
     policy: Path | None = setting(None, "evaluate this saved policy (.keras) without training", optional=True)
 
 
@@ -386,6 +398,8 @@ def learner_config(config: ExperimentConfig) -> tuple[LearnerConfig, LearnerConf
     Raises:
         ValueError: an unknown preset or use case.
     """
+    from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
+
     full = get_preset(config.preset, config.use_case)
     learner = get_preset(config.preset, config.use_case,
                          train_steps=scaled_steps(full.train_steps, config.steps_scale))

@@ -24,10 +24,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from yafs_safetail.runs.engine_options import ENGINES
 from yafs_safetail.runs.grid import RunSpec, config_run_id, make_config
 from yafs_safetail.runs.output import StagedOutput
-
-ENGINES = ("local", "ray")
 
 #: Each run of a campaign computes on one core: the campaign's parallelism is its runs, and a
 #: run whose TensorFlow and BLAS spread over every core would fight the other workers for

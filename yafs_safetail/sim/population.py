@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+# In defaults.py, since the command line shows it before anything loads.
+from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S as DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.hooks import REQUEST_MESSAGE, SINK_MODULE
 from yafs_safetail.yafs.distribution import Distribution, deterministicDistributionStartPoint
 from yafs_safetail.yafs.population import Population
@@ -11,8 +13,6 @@ from yafs_safetail.yafs.population import Population
 if TYPE_CHECKING:
     from yafs_safetail.yafs.core import Sim
 
-#: Simulated time between two requests: one load-trace row (one minute) per step.
-DEFAULT_STEP_INTERVAL_S = 60.0
 
 
 class EdgePopulation(Population):

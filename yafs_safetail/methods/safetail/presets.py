@@ -15,9 +15,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+# The names live in defaults.py: --help lists them before anything heavy loads.
+from yafs_safetail.defaults import PRESET_NAMES as PRESET_NAMES
 from yafs_safetail.edge import published
 
-PRESET_NAMES = ("paper", "paper-literal", "tuned")
 #: The world each preset runs in (``yafs_safetail.edge.calibration``): ``paper-literal`` keeps the
 #: first release's world so that its results stay as they were.
 PRESET_WORLDS = {"paper": "calibrated", "paper-literal": "landed", "tuned": "calibrated"}

@@ -1,0 +1,54 @@
+"""--help and a bad argument answer before anything heavy loads (issue 30: within 0.3 s).
+
+Each case runs in a fresh interpreter and lists, at exit, which heavy libraries were imported.
+The run command's options come from runs.config, so this also guards that module's imports.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+HEAVY = ("numpy", "pandas", "scipy", "simpy", "networkx", "tensorflow", "keras", "matplotlib", "gymnasium")
+#: Prints the heavy modules loaded when the interpreter ends, then runs argv[1:] as the command.
+PROBE = f"""
+import atexit, runpy, sys
+atexit.register(lambda: print("loaded:", sorted(m for m in {HEAVY!r} if m in sys.modules), file=sys.stderr))
+args = sys.argv[1:]
+if args[0] == "yafs-safetail":
+    from yafs_safetail.cli import main
+    sys.exit(main(args[1:]))
+sys.argv = args
+runpy.run_path(args[0], run_name="__main__")
+"""
+RUN_SCRIPT = str(REPOSITORY / "experiments" / "run_usecase.py")
+CASES = {
+    "run --help": (["yafs-safetail", "run", "--help"], 0),
+    "run --uc 7": (["yafs-safetail", "run", "--uc", "7"], 2),
+    "script --help": ([RUN_SCRIPT, "--help"], 0),
+    "script --uc 7": ([RUN_SCRIPT, "--uc", "7"], 2),
+    "script --steps-scale -1": ([RUN_SCRIPT, "--uc", "1", "--steps-scale", "-1"], 2),
+    "script --preset bogus": ([RUN_SCRIPT, "--uc", "1", "--preset", "bogus"], 2),
+    "listing": (["yafs-safetail", "--help"], 0),
+    **{f"{command} --help": (["yafs-safetail", command, "--help"], 0)
+       for command in ("reproduce", "campaign", "calibrate", "compare")},
+    "reproduce --uc 9": (["yafs-safetail", "reproduce", "--uc", "9"], 2),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_help_and_argument_errors_load_nothing_heavy(case):
+    argv, expected_code = CASES[case]
+    done = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True,
+                          cwd=REPOSITORY, timeout=120)
+    assert done.returncode == expected_code, done.stderr[-2000:]
+    lines = done.stderr.splitlines()
+    assert lines[-1] == "loaded: []", done.stderr[-2000:]
+    if expected_code == 0:
+        assert done.stdout.startswith("usage:")
+    else:  # the one-line error, nothing else
+        assert len(lines) == 2 and lines[0].startswith("error: "), done.stderr

@@ -1,0 +1,8 @@
+"""The project's commands, one module each with ``main(argv)``: what ``yafs-safetail <command>``
+runs (``yafs_safetail.cli``), and what ``experiments/<module>.py`` runs in the checkout.
+
+Each module reads top to bottom: its options, their checks, then the work. Only light modules
+(the standard library, ``cli``, ``defaults``, ``runs.config``) are imported before the arguments
+are checked where the command's options allow it, so that ``--help`` and a bad argument answer
+at once.
+"""

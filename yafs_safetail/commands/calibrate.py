@@ -1,0 +1,67 @@
+"""Fit the world parameters the paper never published, without the learner.
+
+    python experiments/calibrate.py                       # the shipped fit (about 5 min on 2 cores)
+    python experiments/calibrate.py --apply               # ... and install the result
+    python experiments/calibrate.py --seeds 1000 --out /tmp/cal   # a quick look
+
+Every point of a fixed grid (load start x load peak x bandwidth share exponent x fallback
+multiple) is scored on use case 1's test worlds of the world-calibration seeds: Rand-1's,
+MinLoad-1's and MinProp-1's latency over Oracle's at the median, p90, p95 and p99, against what
+the paper's numbers imply (docs/calibration.md, rule 1). SafeTail is not in the objective.
+Writes OUT/evaluations.csv (every candidate) and OUT/calibration.json (the best, with its
+provenance); with --apply the result also replaces yafs_safetail/edge/calibration.json, which
+the `paper` and `tuned` presets' world reads.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    int_list,
+    invocation,
+    positive_int,
+)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog="calibrate.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int_list, default=None,
+                        help="world-calibration seeds (default: seed_sets.json's, 1000-1009)")
+    parser.add_argument("--grid", type=Path, default=None,
+                        help="a JSON file mapping each parameter (load_start, load_peak_users, "
+                             "bandwidth_share_exponent, fallback_compute_multiple) to its values "
+                             "(default: the shipped grid, docs/calibration.md)")
+    parser.add_argument("--workers", type=positive_int, default=2,
+                        help="parallel processes (default 2; the result does not depend on it)")
+    parser.add_argument("--out", type=Path, default=Path("results/calibration"),
+                        help="output folder (default results/calibration)")
+    parser.add_argument("--apply", action="store_true",
+                        help="install the result as yafs_safetail/edge/calibration.json")
+    add_verbosity_options(parser)
+    args = parser.parse_args(argv)
+    configure_verbosity(args)
+    # The arguments are checked: now the calibration, with NumPy and the world.
+    from yafs_safetail.edge.calibration import seed_set
+    from yafs_safetail.runs.calibrate import GRID, CalibrationConfig, calibrate, read_grid
+
+    command = shlex.join([*invocation("experiments/calibrate.py"), *(sys.argv[1:] if argv is None else argv)])
+    seeds = tuple(seed_set("world_calibration") if args.seeds is None else args.seeds)
+    grid = GRID if args.grid is None else read_grid(args.grid)
+    document = calibrate(CalibrationConfig(seeds=seeds, grid=grid, workers=args.workers,
+                                           out_dir=args.out, apply=args.apply, command=command))
+    provenance = document["provenance"]
+    print(f"best: {document['parameters']} ({document['readings']['load_start']} load start), "
+          f"objective {provenance['objective_value']} (runner-up {provenance['runner_up_objective']}), "
+          f"within ±20% {provenance['within_20_percent']:.0%}")
+    print(f"written: {args.out / 'calibration.json'}" + (" (installed)" if args.apply else ""))
+    return 0
+

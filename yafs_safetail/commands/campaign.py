@@ -1,0 +1,46 @@
+"""Run a grid of experiments as one campaign: each run computed once, resumable, in parallel.
+
+    python experiments/campaign.py --grid grid.toml --out results/campaign1 --workers 2
+    python experiments/campaign.py --grid grid.toml --out results/campaign1 --engine ray
+    python experiments/campaign.py --grid grid.toml --out results/campaign1 --ray-address head:6379
+
+The grid (TOML, YAML or JSON) sets ExperimentConfig fields in ``[base]`` and lists the values
+to combine in ``[axes]`` (see yafs_safetail/runs/grid.py and docs/campaigns.md). Each run goes
+into ``OUT/<axis values>-<run id>/``; rerunning the same command resumes where it stopped and
+recomputes nothing finished. Progress goes to stderr (none with --quiet but failed runs) and
+``OUT/campaign.log``, each run's state to ``OUT/campaign.json``, each run's own log to its
+``run.log``; the exit status is 1 when a run failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from yafs_safetail.cli import ArgumentParser, add_verbosity_options, configure_verbosity, invocation
+from yafs_safetail.runs.engine_options import add_engine_options, engine_free_command
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog="campaign.py", description=__doc__,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--grid", type=Path, required=True, help="the grid file (.toml, .yaml, .json)")
+    parser.add_argument("--out", type=Path, required=True, help="the campaign folder")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace run folders that hold another configuration")
+    add_engine_options(parser)
+    add_verbosity_options(parser)
+    args = parser.parse_args(argv)
+    configure_verbosity(args)
+    # The arguments are checked: now the grid and the campaign, with NumPy and pandas.
+    from yafs_safetail.runs.campaign import run_campaign
+    from yafs_safetail.runs.grid import load_grid
+
+    specs = load_grid(args.grid)
+    command = engine_free_command(invocation("experiments/campaign.py"), sys.argv[1:] if argv is None else argv)
+    result = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
+                          ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    return 1 if result.failed else 0
+

@@ -1,0 +1,50 @@
+"""Compare two results folders: each method's test-phase p50/p90/p95/p99 and servers per request
+in run A and run B, the ratio B / A and its 95% bootstrap interval.
+
+    python experiments/compare_runs.py RUN_A RUN_B [--out DIR] [--seed 0]
+    yafs-safetail compare RUN_A RUN_B [--out DIR]
+
+Prints the table; with --out also writes DIR/compare.csv and DIR/compare.png (a new folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    non_negative_int,
+)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog="compare_runs.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run_a", type=Path, help="results folder A")
+    parser.add_argument("run_b", type=Path, help="results folder B")
+    parser.add_argument("--out", type=Path, default=None, help="write compare.csv and compare.png into this new folder")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="bootstrap seed (default 0)")
+    add_verbosity_options(parser)
+    args = parser.parse_args(argv)
+    configure_verbosity(args)
+    # The arguments are checked: now the folders, with pandas and matplotlib.
+    from yafs_safetail.results.compare import compare_runs, plot_comparison
+    from yafs_safetail.runs.output import StagedOutput
+
+    output = StagedOutput(args.out) if args.out is not None else None  # the target is checked first
+    table = compare_runs(args.run_a, args.run_b, args.seed)
+    if output is not None:  # written before anything is printed: a closed pipe cannot stop it
+        with output as staging:
+            table.to_csv(staging / "compare.csv", index=False, float_format="%.6g")
+            plot_comparison(table, staging / "compare.png", str(args.run_a), str(args.run_b))
+            output.publish()
+    print(f"A = {args.run_a}\nB = {args.run_b}")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    if output is not None:
+        print(f"written: {args.out / 'compare.csv'}")
+    return 0
+

@@ -1,0 +1,116 @@
+"""Run every use case over several seeds and write one report against the paper's numbers.
+
+    python experiments/reproduce_all.py                          # UC 1-3, seeds 0-4, paper preset
+    python experiments/reproduce_all.py --preset paper,paper-literal,tuned --seeds 0,1,2,3,4,5
+    python experiments/reproduce_all.py --steps-scale 0.1 --out results/quick
+    python experiments/reproduce_all.py --workers 2                # two runs at a time
+    python experiments/reproduce_all.py --engine ray               # on Ray (see docs/campaigns.md)
+    python experiments/reproduce_all.py --learning-rate 1e-3 --out results/paper-lr1e-3
+
+For every (use case, preset, seed) it runs exactly what ``run_usecase.py`` runs, into
+``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` opens with the fidelity scorecard of
+each preset (every ratio and claim the paper publishes against ours over the seeds, calibration
+subset and held-out numbers apart; also in ``OUT/fidelity.csv`` and the figure
+``OUT/fidelity-<preset>.png``), then what any policy could reach in that world (whether the
+paper's statements about each percentile can hold together at all, from Oracle's and the
+baselines' latencies and the targets alone; ``OUT/feasibility.csv``,
+yafs_safetail/results/feasibility.py), and gives, per use case and preset: the latency table (mean over
+seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones with a plain
+note where they differ, what the learner did (training rounds, final ε, servers used, target
+met, fallbacks) as the first place to look for why, figures across seeds with 95% bands
+(``OUT/figures/uc<N>-<preset>-latency-bands`` and ``-servers-bands``, PNG and PDF) and the
+figures of the first seed. Every table of the report is also written as LaTeX
+(``OUT/tables/*.tex``, listed at the end of REPORT.md). Seeds must be distinct; the scorecard
+asks for at least five.
+
+The runs form one campaign (yafs_safetail/runs/campaign.py): rerunning the same command on the
+same --out resumes an interrupted reproduction and recomputes no finished run (a run folder
+records its run id, a hash of its configuration and the code version); a run that fails is
+reported and the others go on (exit status 1, no report). Progress goes to stderr and
+``OUT/campaign.log``, each run's state to ``OUT/campaign.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+# Light modules only until the arguments are checked (--help answers at once).
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    distinct_int_list,
+    invocation,
+)
+from yafs_safetail.defaults import PRESET_NAMES
+from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.runs.config import ExperimentError, LearnerOverrides, add_options
+from yafs_safetail.runs.engine_options import add_engine_options
+
+
+def _presets(text: str) -> tuple[str, ...]:
+    names = tuple(part.strip() for part in text.split(",") if part.strip())
+    unknown = [n for n in names if n not in PRESET_NAMES]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(f"unknown preset(s) {unknown}; valid: {', '.join(PRESET_NAMES)}")
+    return names
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog="reproduce_all.py", description=__doc__,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--uc", type=distinct_int_list, default=USE_CASES, help="use cases (default: all)")
+    parser.add_argument("--seeds", type=distinct_int_list, default=(0, 1, 2, 3, 4),
+                        help="distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)")
+    parser.add_argument("--preset", type=_presets, default=("paper",),
+                        help="preset(s), comma-separated (default paper)")
+    parser.add_argument("--out", type=Path, default=Path("results/reproduce"),
+                        help="output folder (default results/reproduce)")
+    # The settings every run shares, each declared once in runs.config (its type, check and
+    # default); the help says what they mean for the whole reproduction.
+    add_options(parser, only=("steps_scale", "target_compute"),
+                steps_scale={"help": "fraction of each preset's steps (default 1)"},
+                target_compute={"help": "C(s_j) of Eq. 4 for every run (default: each preset world's; "
+                                        "docs/deviations.md D11)"})
+    add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
+                learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
+                                       "report then says these are not the presets' results)"})
+    add_options(parser, only=("figures",), figures={"help": "skip the per-run figures"})
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace run folders in --out that hold another configuration")
+    add_engine_options(parser)
+    add_verbosity_options(parser)
+    args = parser.parse_args(argv)
+    bad = [uc for uc in args.uc if uc not in USE_CASES]
+    if bad:
+        raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")
+    configure_verbosity(args)
+    # The arguments are checked: now the campaign and the report, with NumPy and pandas.
+    from yafs_safetail.results.reproduction import RUN_FOLDER, write_report
+    from yafs_safetail.runs.campaign import engine_free_command, run_campaign
+    from yafs_safetail.runs.grid import expand
+    from yafs_safetail.runs.output import refuse_protected
+
+    command = engine_free_command(invocation("experiments/reproduce_all.py"), sys.argv[1:] if argv is None else argv)
+    refuse_protected(args.out)
+    # Every (use case, preset, seed) is one run of a campaign: resumable, in parallel with
+    # --workers, each run's folder where it always was.
+    base = {"steps_scale": args.steps_scale, "figures": args.figures}
+    overridable = ("target_compute", *(item.name for item in dataclasses.fields(LearnerOverrides)))
+    base.update({name: getattr(args, name) for name in overridable if getattr(args, name) is not None})
+    specs = expand(base,
+                   {"use_case": list(args.uc), "preset": list(args.preset), "seed": list(args.seeds)},
+                   name=RUN_FOLDER, source="reproduce_all.py")
+    outcome = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
+                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    if outcome.failed:
+        print(f"error: {outcome.failed} run(s) failed (see above); no report written; rerun the "
+              "same command to retry them (finished runs are kept)", file=sys.stderr)
+        return 1
+    report = write_report(args.out, args.uc, args.preset, args.seeds, command, args.learning_rate)
+    print(f"report: {report}")
+    return 0

@@ -1,0 +1,128 @@
+"""Train SafeTail on one use case, test it against the paper's baselines, write results and figures.
+
+    python experiments/run_usecase.py --uc 1                       # paper preset, full budget
+    python experiments/run_usecase.py --uc 2 --preset tuned --seed 3 --out results/uc2-tuned
+    python experiments/run_usecase.py --uc 1 --steps-scale 0.1     # a quick look
+    python experiments/run_usecase.py --uc 1 --policy results/uc1/policy.keras --out results/uc1-eval
+    python experiments/run_usecase.py --uc 1 --method examples/custom_policy/nearest_free.py:NearestFree
+    yafs-safetail run --uc 1                                       # the same, installed
+
+
+Progress goes to stderr: bars on a terminal, otherwise one line per phase start and end and
+every 10% of a long phase; --quiet keeps warnings and errors only, --verbose adds debug lines.
+The output folder gets run.log (the command, the configuration, every phase with its time),
+requests.csv (one row per request and method), summary.csv and
+summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
+Figs. (a)-(g) under figures/ as PNG and PDF, and with --yafs-csv each method's YAFS result
+CSVs under yafs/ (about 70 MB for a full UC1 run, so only on request).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+# Light modules only until the arguments are checked (--help answers at once); the experiment,
+# with NumPy, simpy and TensorFlow behind it, is imported in main.
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    invocation,
+)
+from yafs_safetail.defaults import DEFAULT_TOPOLOGY, default_placement
+from yafs_safetail.edge.topology_io import ScenarioError
+from yafs_safetail.logs import is_terminal
+from yafs_safetail.runs.config import ExperimentConfig, add_options, config_from_args
+
+#: The run's options in the order --help lists them (each declared once, in runs.config).
+OPTIONS = ("use_case", "preset", "seed", "out_dir", "force", "overwrite", "resume", "checkpoint_every_s",
+           "steps_scale", "redundancy_levels", "topology", "placement", "methods", "policy",
+           "step_interval_s", "target_latency_s", "load_peak_users", "target_compute", "learning_rate",
+           "workers")
+
+
+def _parser() -> ArgumentParser:
+    parser = ArgumentParser(prog="run_usecase.py", description=__doc__,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_options(parser, only=OPTIONS,
+                use_case={"required": True},
+                out_dir={"default": None,
+                         "help": "results folder (default results/uc<N>-<preset>-s<seed>, with "
+                                 "-lr<rate> after the preset with --learning-rate, then "
+                                 "-<topology file name> with a --topology other than the paper's, "
+                                 "and -x<scale> at the end with --steps-scale); never replaced "
+                                 "unless --overwrite"},
+                placement={"default": None})
+    yafs_csv = parser.add_mutually_exclusive_group()
+    add_options(yafs_csv, only=("write_yafs_csv",))
+    yafs_csv.add_argument("--no-yafs-csv", action="store_true",
+                          help="do not write the YAFS CSVs (the default; kept for older scripts)")
+    add_options(parser, only=("figures",))
+    # Any other setting with an option (a learner hyperparameter added to runs.config) too.
+    add_options(parser, exclude=(*OPTIONS, "write_yafs_csv", "figures"))
+    add_verbosity_options(parser)
+    return parser
+
+
+def default_out_dir(args: argparse.Namespace) -> Path:
+    """The results folder of a run without ``--out``.
+
+    ``results/uc<N>-<preset>[-lr<rate>][-<topology>]-s<seed>[-x<scale>]``. The topology is in
+    the name so that a run on another topology does not land in the paper topology's folder
+    and stop at "holds an earlier run"; its file name (without ``.json``) appears only for a
+    topology other than the paper's, so the paper's runs keep the names the docs and tests use.
+
+    Args:
+        args: the parsed command line (named as ExperimentConfig's fields).
+
+    Returns:
+        The folder, relative to the working folder.
+    """
+    scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
+    rate = "" if args.learning_rate is None else f"-lr{args.learning_rate:g}"
+    # Compared as resolved files: the paper's topology given by a relative or linked path is
+    # still the paper's.
+    paper_topology = Path(args.topology).resolve() == DEFAULT_TOPOLOGY.resolve()
+    topology = "" if paper_topology else f"-{Path(args.topology).stem}"
+    return Path("results") / f"uc{args.use_case}-{args.preset}{rate}{topology}-s{args.seed}{scale}"
+
+
+def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
+    """The run's configuration from the command line (no logging set up)."""
+    return _config(_parser().parse_args(argv), argv)
+
+
+def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentConfig:
+    placement = args.placement
+    if placement is None:
+        placement = default_placement(args.topology)
+        if not placement.is_file() and Path(args.topology).is_file():
+            # The loader's own "not found" names a file the user never gave: say where the
+            # name came from and what to pass instead. (A missing topology is the loader's to
+            # report first: the placement's name is derived from it.)
+            raise ScenarioError(str(placement), "file",
+                                f"placement file not found, the default for --topology {args.topology}; "
+                                "pass --placement with the placement JSON of that topology")
+    command = shlex.join([*invocation("experiments/run_usecase.py"), *(sys.argv[1:] if argv is None else argv)])
+    config: ExperimentConfig = config_from_args(
+        args, placement=placement, out_dir=args.out_dir or default_out_dir(args), command=command,
+        # Bars only where someone watches; elsewhere the phases' 10% lines say the same.
+        progress=not args.quiet and is_terminal(sys.stderr))
+    return config
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one use case as the command line asks; returns the exit code (0)."""
+    args = _parser().parse_args(argv)
+    configure_verbosity(args)
+    config = _config(args, argv)
+    from yafs_safetail.runs.experiment import run_experiment
+
+    report = run_experiment(config)
+    print((report.out_dir / "summary.md").read_text(), end="")
+    print(f"\nresults: {report.out_dir}")
+    return 0

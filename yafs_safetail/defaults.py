@@ -1,0 +1,53 @@
+"""What a command line shows before anything runs: the default input files and the names of the
+choices, in a module that imports only the standard library.
+
+``--help`` and a bad argument must answer at once (nothing heavy imported before the arguments
+are checked), so the options' defaults and choices live here and the modules that use them
+(``edge.scenario``, ``edge.traces``, ``edge.calibration``, ``sim.population``,
+``methods.safetail.presets``) import them from here.
+
+The default files (topologies/, placements/, traces/) sit in :data:`DATA_ROOT`:
+
+- run from the project checkout (``PYTHONPATH=.`` or ``pip install -e .``): the checkout's root,
+  where users edit them;
+- installed from a wheel: the copy ``setup.py`` puts into the package as ``yafs_safetail/_data/``,
+  so a run does not depend on the checkout.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+_PACKAGE = Path(__file__).resolve().parent
+#: Where a built wheel carries the default files (setup.py's build step copies them there).
+PACKAGED_DATA = _PACKAGE / "_data"
+#: The folder holding topologies/, placements/ and traces/: the installed copy if there is one,
+#: otherwise the source checkout the package is imported from.
+DATA_ROOT = PACKAGED_DATA if PACKAGED_DATA.is_dir() else _PACKAGE.parent
+#: The default files' folders, relative to :data:`DATA_ROOT`, and which of their files a wheel
+#: must carry (setup.py copies exactly these; a test checks every default file is covered).
+DATA_FILES: dict[str, tuple[str, ...]] = {
+    "topologies": ("*.json",),
+    "placements": ("*.json",),
+    "traces": ("*.csv", "README.md", "models/*.npz", "models/*.json", "models/*.keras"),
+}
+
+#: The paper's setting: five edge servers (§V-A).
+DEFAULT_TOPOLOGY = DATA_ROOT / "topologies" / "paper_5servers.json"
+DEFAULT_PLACEMENT = DATA_ROOT / "placements" / "paper_5servers.json"
+#: The trace CSVs and, under models/, the compute models (traces/README.md).
+DEFAULT_TRACE_DIR = DATA_ROOT / "traces"
+
+
+def default_placement(topology: Path) -> Path:
+    """The placement that goes with a topology file: ``placements/<its file name>``."""
+    return DEFAULT_PLACEMENT if topology == DEFAULT_TOPOLOGY else DEFAULT_PLACEMENT.parent / topology.name
+
+
+#: The learner presets (methods.safetail.presets defines each).
+PRESET_NAMES = ("paper", "paper-literal", "tuned")
+#: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
+#: median scaled to the request's own input (docs/deviations.md D11).
+TARGET_COMPUTES = ("trace_median", "request")
+#: Simulated time between two requests: one load-trace row (one minute) per step.
+DEFAULT_STEP_INTERVAL_S = 60.0
