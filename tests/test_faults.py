@@ -55,3 +55,143 @@ def test_other_write_errors_pass_through_unchanged(tmp_path):
     with pytest.raises(PermissionError):
         with StagedOutput(tmp_path / "run"):
             raise PermissionError(errno.EACCES, "denied")
+
+
+# --------------------------------------------------------------------------------------------
+# A checkpoint cut short or corrupted, then --resume
+
+
+class _Stop(KeyboardInterrupt):
+    """Stands for a crash right after the first checkpoint was written."""
+
+
+@pytest.fixture(scope="module")
+def interrupted_run(tmp_path_factory):
+    """A real run stopped after its first training checkpoint: (its config, checkpoint path)."""
+    import dataclasses
+
+    from yafs_safetail.runs import checkpoint as checkpoint_module
+    from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
+
+    config = ExperimentConfig(use_case=1, out_dir=tmp_path_factory.mktemp("crash") / "run",
+                              steps_scale=0.05, redundancy_levels=(1,), figures=False,
+                              progress=False, workers=1, checkpoint_every_s=0.0)
+    real_write = checkpoint_module.write_checkpoint
+
+    def write_then_crash(target, checkpoint):  # type: ignore[no-untyped-def]
+        real_write(target, checkpoint)
+        raise _Stop
+
+    checkpoint_module.write_checkpoint = write_then_crash
+    try:
+        with pytest.raises(_Stop):
+            run_experiment(config)
+    finally:
+        checkpoint_module.write_checkpoint = real_write
+    path = checkpoint_module.checkpoint_folder(config.out_dir) / checkpoint_module.CHECKPOINT_FILE
+    assert path.is_file() and not config.out_dir.exists()
+    return dataclasses.replace(config, resume=True), path
+
+
+def _cut_short(data: bytes) -> bytes:
+    return data[: len(data) // 2]
+
+
+def _flip_one_byte(data: bytes) -> bytes:
+    middle = len(data) // 2 + 7  # inside the pickle, past the header
+    return data[:middle] + bytes([data[middle] ^ 0x01]) + data[middle + 1:]
+
+
+@pytest.mark.parametrize("damage", [_cut_short, _flip_one_byte], ids=["cut short", "one byte flipped"])
+def test_a_damaged_checkpoint_is_refused_in_one_line_and_kept(interrupted_run, damage):
+    from yafs_safetail.runs.checkpoint import CheckpointError
+    from yafs_safetail.runs.experiment import run_experiment
+
+    config, path = interrupted_run
+    original = path.read_bytes()
+    try:
+        path.write_bytes(damage(original))
+        damaged = path.read_bytes()
+        with pytest.raises(CheckpointError) as raised:
+            run_experiment(config)
+        message = str(raised.value)
+        assert "\n" not in message
+        assert message.startswith(f"--resume: {path} is damaged (cut short or corrupted")
+        assert "run without --resume" in message
+        assert path.read_bytes() == damaged  # the tool does not delete or repair it
+        assert not config.out_dir.exists()
+    finally:
+        path.write_bytes(original)
+
+
+def test_the_undamaged_checkpoint_resumes(interrupted_run, tmp_path):
+    import dataclasses
+    import shutil
+
+    from yafs_safetail.runs.checkpoint import checkpoint_folder
+    from yafs_safetail.runs.experiment import run_experiment
+
+    config, path = interrupted_run
+    copy = dataclasses.replace(config, out_dir=tmp_path / "run")
+    shutil.copytree(path.parent, checkpoint_folder(copy.out_dir))
+    report = run_experiment(copy)
+    assert (report.out_dir / "requests.csv").is_file()
+
+
+# --------------------------------------------------------------------------------------------
+# A real full disk: a small tmpfs (root and a kernel that allows it; skipped elsewhere)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    import shutil
+    import subprocess
+
+    mount_point = tmp_path / "disk"
+    mount_point.mkdir()
+    if shutil.which("mount") is None or os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs needs root and mount(8); the injected ENOSPC tests "
+                    "above cover the same code")
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(mount_point)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        pytest.skip(f"this machine does not allow mounting a tmpfs ({done.stderr.strip()})")
+    try:
+        yield mount_point
+    finally:
+        subprocess.run(["umount", str(mount_point)], check=False)
+
+
+def _run_usecase(*args: str):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "yafs_safetail.cli", "run", *args],
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_a_run_on_a_full_disk_is_one_line_and_leaves_nothing(small_disk):
+    out = small_disk / "run"
+    done = _run_usecase("--uc", "1", "--steps-scale", "0.03", "--workers", "1", "--quiet", "--out", str(out))
+    assert done.returncode == 2, done.stderr[-2000:]
+    lines = done.stderr.strip().splitlines()
+    assert lines == [f"error: --out {out}: no space left on the device while writing the "
+                     "results; nothing was left there"], done.stderr[-2000:]
+    assert list(small_disk.iterdir()) == []
+
+
+def test_overwrite_on_a_full_disk_keeps_the_earlier_run_byte_for_byte(small_disk):
+    out = small_disk / "run"
+    _fake_results_folder(out)
+    before = _snapshot(out)
+    filler = small_disk / "filler.bin"
+    with filler.open("wb") as stream:  # leave about 100 KB: less than a run writes
+        stream.write(b"\0" * (300 * 1024))
+    done = _run_usecase("--uc", "1", "--steps-scale", "0.03", "--workers", "1", "--quiet", "--out", str(out),
+                        "--overwrite")
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert done.stderr.strip().splitlines() == [
+        f"error: --out {out}: no space left on the device while writing the results; the "
+        "earlier results there are untouched"], done.stderr[-2000:]
+    assert _snapshot(out) == before
+    assert sorted(p.name for p in small_disk.iterdir()) == ["filler.bin", "run"]

@@ -154,7 +154,7 @@ def test_a_truncated_checkpoint_is_one_line(tmp_path):
     folder.mkdir()
     (folder / checkpoint_module.CHECKPOINT_MARKER).touch()
     (folder / CHECKPOINT_FILE).write_bytes(pickle.dumps((1, "x"))[:5])
-    one_error_line(run("--uc", "1", "--out", out, *SMALL, "--resume"), "not a readable checkpoint")
+    one_error_line(run("--uc", "1", "--out", out, *SMALL, "--resume"), "not a checkpoint")
 
 
 def test_resume_needs_a_training_run(tmp_path):

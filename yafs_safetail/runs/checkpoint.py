@@ -23,6 +23,7 @@ same code version, never from elsewhere.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import pickle
 import tempfile
@@ -36,8 +37,11 @@ from yafs_safetail.runs.output import OutputError
 CHECKPOINT_MARKER = ".yafs-safetail-checkpoint"
 CHECKPOINT_FILE = "training.pickle"
 #: Bumped when the checkpoint's contents change: an older checkpoint is refused, not misread.
-#: 2: one :class:`MethodTraining` per learning method.
-CHECKPOINT_FORMAT = 2
+#: 2: one :class:`MethodTraining` per learning method. 3: a checksummed header.
+CHECKPOINT_FORMAT = 3
+#: The file's first line: this magic, the format and the SHA-256 of the pickle that follows.
+#: A copy cut short or a flipped byte fails the checksum instead of unpickling to wrong numbers.
+CHECKPOINT_MAGIC = b"yafs-safetail-checkpoint"
 
 
 class CheckpointError(ValueError):
@@ -102,14 +106,53 @@ def write_checkpoint(target: Path, checkpoint: TrainingCheckpoint) -> None:
     _check_ours(folder, "--out")
     folder.mkdir(exist_ok=True)
     (folder / CHECKPOINT_MARKER).touch()
+    first = not (folder / CHECKPOINT_FILE).is_file()
+    payload = pickle.dumps(checkpoint, protocol=pickle.HIGHEST_PROTOCOL)
+    header = b"%s %d sha256=%s\n" % (CHECKPOINT_MAGIC, CHECKPOINT_FORMAT,
+                                     hashlib.sha256(payload).hexdigest().encode())
     handle, temporary = tempfile.mkstemp(prefix=".training-", suffix=".partial", dir=folder)
     try:
         with os.fdopen(handle, "wb") as stream:
-            pickle.dump((CHECKPOINT_FORMAT, checkpoint), stream, protocol=pickle.HIGHEST_PROTOCOL)
+            stream.write(header)
+            stream.write(payload)
+            stream.flush()
+            # On disk before the rename: a crash after it must not leave an empty checkpoint.
+            os.fsync(stream.fileno())
         os.replace(temporary, folder / CHECKPOINT_FILE)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
+        if first:  # nothing of an earlier checkpoint to keep (e.g. the disk is full)
+            discard_checkpoint(target)
         raise
+
+
+def _unpickle_checked(path: Path) -> TrainingCheckpoint:
+    """The checkpoint in ``path`` once its header and checksum hold (CheckpointError if not)."""
+    start_over = "to start over, run without --resume (that replaces it)"
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise CheckpointError(f"--resume: {path} cannot be read ({error.strerror}); "
+                              f"{start_over}") from None
+    header, _, payload = data.partition(b"\n")
+    fields = header.split(b" ")
+    if len(fields) != 3 or fields[0] != CHECKPOINT_MAGIC or not fields[2].startswith(b"sha256="):
+        raise CheckpointError(f"--resume: {path} is not a checkpoint this version of the tool "
+                              f"wrote; {start_over}")
+    if fields[1] != b"%d" % CHECKPOINT_FORMAT:
+        raise CheckpointError(f"--resume: {path} was written by another version of the tool "
+                              f"(format {fields[1].decode(errors='replace')}); {start_over}")
+    if hashlib.sha256(payload).hexdigest().encode() != fields[2].removeprefix(b"sha256="):
+        raise CheckpointError(f"--resume: {path} is damaged (cut short or corrupted: its "
+                              f"checksum does not match); {start_over}")
+    try:
+        checkpoint = pickle.loads(payload)
+    except Exception as error:  # the checksum held, so the pickle is ours: a code change
+        raise CheckpointError(f"--resume: {path} cannot be loaded by this version of the tool "
+                              f"({type(error).__name__}); {start_over}") from None
+    if not isinstance(checkpoint, TrainingCheckpoint):
+        raise CheckpointError(f"--resume: {path} is not a training checkpoint; {start_over}")
+    return checkpoint
 
 
 def read_checkpoint(target: Path, run_id: str) -> TrainingCheckpoint:
@@ -123,15 +166,7 @@ def read_checkpoint(target: Path, run_id: str) -> TrainingCheckpoint:
     if not (folder / CHECKPOINT_MARKER).is_file() or not path.is_file():
         raise CheckpointError(f"--resume: no checkpoint of an interrupted run for {target} "
                               f"(looked for {path}); run without --resume")
-    try:
-        with path.open("rb") as stream:
-            version, checkpoint = pickle.load(stream)
-    except Exception as error:  # a truncated or foreign file: pickle raises many kinds
-        raise CheckpointError(f"--resume: {path} is not a readable checkpoint "
-                              f"({type(error).__name__}); run without --resume") from None
-    if version != CHECKPOINT_FORMAT or not isinstance(checkpoint, TrainingCheckpoint):
-        raise CheckpointError(f"--resume: {path} was written by another version of the tool; "
-                              "run without --resume")
+    checkpoint = _unpickle_checked(path)
     if checkpoint.run_id != run_id:
         raise CheckpointError(
             f"--resume: {path} is of another configuration or code version (run id "
