@@ -4,10 +4,8 @@ The command lives in the package, yafs_safetail/commands/calibrate.py (``yafs-sa
 the same); ``python experiments/calibrate.py --help`` lists its options.
 """
 
-import sys
-
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import run_script
 from yafs_safetail.commands.calibrate import main
 
 if __name__ == "__main__":
-    sys.exit(run_cli(main))
+    run_script(main)

@@ -4,10 +4,8 @@ The command lives in the package, yafs_safetail/commands/compare_runs.py (``yafs
 the same); ``python experiments/compare_runs.py --help`` lists its options.
 """
 
-import sys
-
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import run_script
 from yafs_safetail.commands.compare_runs import main
 
 if __name__ == "__main__":
-    sys.exit(run_cli(main))
+    run_script(main)

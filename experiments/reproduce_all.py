@@ -4,10 +4,8 @@ The command lives in the package, yafs_safetail/commands/reproduce_all.py (``yaf
 the same); ``python experiments/reproduce_all.py --help`` lists its options.
 """
 
-import sys
-
-from yafs_safetail.cli import run_cli
+from yafs_safetail.cli import run_script
 from yafs_safetail.commands.reproduce_all import main
 
 if __name__ == "__main__":
-    sys.exit(run_cli(main))
+    run_script(main)

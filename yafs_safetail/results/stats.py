@@ -228,8 +228,6 @@ def geometric_interval(values: Sequence[float], level: float = 0.95) -> tuple[fl
         ``(geometric mean, low, high)``; NaN interval with fewer than two values; all NaN when
         no value is finite and positive.
     """
-    from scipy import stats
-
     data = np.asarray([v for v in values if math.isfinite(v) and v > 0], dtype=float)
     if data.size == 0:
         return math.nan, math.nan, math.nan
@@ -237,6 +235,10 @@ def geometric_interval(values: Sequence[float], level: float = 0.95) -> tuple[fl
     centre = float(logs.mean())
     if data.size < 2:
         return math.exp(centre), math.nan, math.nan
+    # SciPy is imported only when there is an interval to compute: a single run's summary
+    # (one seed) needs none, and the import took over a second of every run.
+    from scipy import stats
+
     half = float(stats.t.ppf((1 + level) / 2, data.size - 1)) * float(logs.std(ddof=1))
     half /= math.sqrt(data.size)
     return math.exp(centre), math.exp(centre - half), math.exp(centre + half)
@@ -254,8 +256,6 @@ def bootstrap_interval(values: Sequence[float], level: float = 0.95) -> tuple[fl
         ``(mean, low, high)``; NaN interval with fewer than two values or when they are all
         equal (the interval is then the value itself).
     """
-    from scipy import stats
-
     data = np.asarray([v for v in values if not math.isnan(v)], dtype=float)
     if data.size == 0:
         return math.nan, math.nan, math.nan
@@ -264,6 +264,8 @@ def bootstrap_interval(values: Sequence[float], level: float = 0.95) -> tuple[fl
         return mean, math.nan, math.nan
     if np.all(data == data[0]):
         return mean, mean, mean
+    from scipy import stats  # only when there is an interval to compute (as above)
+
     result = stats.bootstrap((data,), np.mean, confidence_level=level, method="percentile",
                              n_resamples=BOOTSTRAP_RESAMPLES, rng=np.random.default_rng(0))
     return mean, float(result.confidence_interval.low), float(result.confidence_interval.high)
