@@ -96,9 +96,9 @@ def test_a_learner_override_replaces_the_preset_field_of_its_name():
 
 def test_the_run_id_hashes_the_result_fields_as_before():
     """The run ids of existing configurations do not change (values computed before runs.config)."""
-    assert grid.SETTABLE_FIELDS == RESULT_FIELDS
+    assert grid.SETTABLE_FIELDS == (*RESULT_FIELDS, "figure_formats")
     assert set(grid.RUNTIME_FIELDS) == {"out_dir", "progress", "command", "workers", "overwrite", "force",
-                                        "run_id", "resume", "checkpoint_every_s"}
+                                        "run_id", "resume", "checkpoint_every_s", "figure_formats"}
     assert set(grid.PATH_FIELDS) == {"topology", "placement", "traces_dir", "policy"}
     with mock.patch.object(grid, "code_version", lambda: "0.0.0+git.test"), \
             mock.patch.object(grid, "_digest", lambda path: "digest"):
@@ -106,3 +106,5 @@ def test_the_run_id_hashes_the_result_fields_as_before():
         assert grid.config_run_id(ExperimentConfig(
             use_case=2, seed=4, steps_scale=0.5, learning_rate=1e-3, target_compute="request",
             figures=False)) == "7fd27f6c770f"
+        # Which copies of the figures a run draws is not part of what it computes.
+        assert grid.config_run_id(ExperimentConfig(figure_formats=("png", "pdf"))) == "a89f6bb8a559"

@@ -80,8 +80,9 @@ def test_access_rate_goal_and_markdown_and_figure(tmp_path):
     assert 0.3 <= access["ci_low"] <= access["ci_high"] <= 0.7
     text = fidelity.scorecard_markdown(card)
     assert "| 1 | SafeTail over MinProp-1 p99 | 1.89 |" in text and "calibration |" in text
-    written = fidelity.draw_scorecard(card, tmp_path / "fidelity")
+    written = fidelity.draw_scorecard(card, tmp_path / "fidelity", ("png", "pdf"))
     assert [p.suffix for p in written] == [".png", ".pdf"] and all(p.stat().st_size > 0 for p in written)
+    assert [p.suffix for p in fidelity.draw_scorecard(card, tmp_path / "default")] == [".png"]
 
 
 def test_run_line_of_a_single_run():

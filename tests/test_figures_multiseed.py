@@ -163,8 +163,9 @@ def test_runs_without_baselines_get_one_panel(series) -> None:
 
 
 def test_files_written_and_identical_on_redraw(folders, tmp_path) -> None:
-    first = fm.draw_multiseed_figures(folders, tmp_path / "a")
-    second = fm.draw_multiseed_figures(folders, tmp_path / "b")
+    both = ("png", "pdf")
+    first = fm.draw_multiseed_figures(folders, tmp_path / "a", both)
+    second = fm.draw_multiseed_figures(folders, tmp_path / "b", both)
     names = ["uc1-paper-latency-bands.png", "uc1-paper-latency-bands.pdf",
              "uc1-paper-servers-bands.png", "uc1-paper-servers-bands.pdf"]
     assert [p.name for p in first] == names
@@ -173,6 +174,7 @@ def test_files_written_and_identical_on_redraw(folders, tmp_path) -> None:
         assert data.startswith(b"\x89PNG" if path.suffix == ".png" else b"%PDF")
         assert data == again.read_bytes()
     assert sorted(p.name for p in (tmp_path / "a").iterdir()) == sorted(names)  # no temporaries
+    assert [p.name for p in fm.draw_multiseed_figures(folders, tmp_path / "c")] == names[::2]  # PNG
 
 
 def test_mixed_use_cases_are_refused(folders, tmp_path) -> None:

@@ -19,14 +19,14 @@ import pytest
 
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import world_settings
-from yafs_safetail.figures import FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR, build_figures
+from yafs_safetail.figures import DEFAULT_FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR, build_figures
 from yafs_safetail.figures import load_inputs as load_figure_inputs
 from yafs_safetail.runs.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, baseline_names
 
 SCRIPT = REPOSITORY / "experiments" / "run_usecase.py"
 EXAMPLE = REPOSITORY / "examples" / "custom_policy" / "nearest_free.py"
 TINY = ["--steps-scale", "0.02", "--redundancy", "1,2"]
-FIGURES = [f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in FIGURE_FORMATS]
+FIGURES = [f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in DEFAULT_FIGURE_FORMATS]
 
 
 def run_script(*args: str | Path, cwd: Path = REPOSITORY) -> subprocess.CompletedProcess[str]:
@@ -188,10 +188,11 @@ def test_other_use_cases_run(tmp_path, uc):
 def test_tuned_preset_with_figures_and_yafs_csvs(tmp_path, uc):
     out = tmp_path / f"uc{uc}"
     done = run_script("--uc", uc, "--preset", "tuned", "--seed", "1", "--out", out, "--quiet",
-                      "--steps-scale", "0.1", "--yafs-csv")
+                      "--steps-scale", "0.1", "--yafs-csv", "--figure-format", "pdf,png")
     assert done.returncode == 0, done.stderr
     assert json.loads((out / "run.json").read_text())["preset"] == "tuned"
-    assert sorted(p.name for p in (out / FIGURES_DIR).iterdir()) == sorted(FIGURES)
+    assert sorted(p.name for p in (out / FIGURES_DIR).iterdir()) == sorted(
+        f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in ("png", "pdf"))
 
 
 def test_help():

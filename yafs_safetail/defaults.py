@@ -16,6 +16,7 @@ The default files (topologies/, placements/, traces/) sit in :data:`DATA_ROOT`:
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 _PACKAGE = Path(__file__).resolve().parent
@@ -51,3 +52,22 @@ PRESET_NAMES = ("paper", "paper-literal", "tuned")
 TARGET_COMPUTES = ("trace_median", "request")
 #: Simulated time between two requests: one load-trace row (one minute) per step.
 DEFAULT_STEP_INTERVAL_S = 60.0
+
+#: Every format a figure can be saved in, in the order they are written.
+FIGURE_FORMATS: tuple[str, ...] = ("png", "pdf")
+#: What a run draws unless asked (--figure-format): PDF copies take as long again as the PNGs.
+DEFAULT_FIGURE_FORMATS: tuple[str, ...] = ("png",)
+
+
+def figure_formats(text: str) -> tuple[str, ...]:
+    """``"png"``, ``"pdf"`` or ``"png,pdf"`` -> the formats in FIGURE_FORMATS order.
+
+    Raises:
+        argparse.ArgumentTypeError: an unknown or empty format list (a command line reports it
+            as a usage error naming the option).
+    """
+    asked = {part.strip().lower() for part in text.split(",") if part.strip()}
+    if not asked or asked - set(FIGURE_FORMATS):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected a comma-separated list of {', '.join(FIGURE_FORMATS)}")
+    return tuple(fmt for fmt in FIGURE_FORMATS if fmt in asked)

@@ -22,7 +22,6 @@ deleted figure behind.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -39,12 +38,13 @@ from matplotlib.figure import Figure
 
 from yafs_safetail import results
 from yafs_safetail.cli import ArgumentParser, run_cli
+from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS as DEFAULT_FIGURE_FORMATS  # (re-exported)
+from yafs_safetail.defaults import FIGURE_FORMATS as FIGURE_FORMATS  # (re-exported)
+from yafs_safetail.defaults import figure_formats
 from yafs_safetail.results import ResultsFileError, RunMetadata
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 
 FIGURES_DIR = "figures"
-#: Every format a figure can be saved in, in the order they are written.
-FIGURE_FORMATS: tuple[str, ...] = ("png", "pdf")
 FIGURE_STEMS: dict[str, str] = {
     "a": "fig_a_latency_comparison",
     "b": "fig_b_safetail_vs_rand",
@@ -112,23 +112,8 @@ def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
     return figure, axes
 
 
-def figure_formats(text: str) -> tuple[str, ...]:
-    """``"png"``, ``"pdf"`` or ``"png,pdf"`` -> the formats in FIGURE_FORMATS order.
-
-    Raises:
-        argparse.ArgumentTypeError: an unknown or empty format list (so a command line reports
-            it as a usage error naming the option).
-    """
-    asked = {part.strip().lower() for part in text.split(",") if part.strip()}
-    unknown = sorted(asked - set(FIGURE_FORMATS))
-    if unknown or not asked:
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: expected a comma-separated list of {', '.join(FIGURE_FORMATS)}")
-    return tuple(fmt for fmt in FIGURE_FORMATS if fmt in asked)
-
-
 def _save(figure: Figure, folder: Path, stem: str,
-          formats: Sequence[str] = FIGURE_FORMATS) -> list[Path]:
+          formats: Sequence[str] = DEFAULT_FIGURE_FORMATS) -> list[Path]:
     written = []
     for fmt in formats:
         dest = folder / f"{stem}.{fmt}"
@@ -267,7 +252,7 @@ def draw_figures(
     directory: str | os.PathLike[str],
     requests: pd.DataFrame | None = None,
     run: RunMetadata | None = None,
-    formats: Sequence[str] = FIGURE_FORMATS,
+    formats: Sequence[str] = DEFAULT_FIGURE_FORMATS,
 ) -> list[Path]:
     """Draw panels (a)-(g) into ``directory/figures`` in each of ``formats``.
 
@@ -306,9 +291,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "(requests.csv and run.json) into DIR/figures.",
     )
     parser.add_argument("directory", metavar="DIR", help="results folder of one run")
-    parser.add_argument("--figure-format", type=figure_formats, default=FIGURE_FORMATS,
+    parser.add_argument("--figure-format", type=figure_formats, default=DEFAULT_FIGURE_FORMATS,
                         metavar="FORMATS",
-                        help="comma-separated: png, pdf or both (default: png,pdf)")
+                        help="comma-separated: png, pdf or both (default: png)")
     args = parser.parse_args(argv)
     written = draw_figures(args.directory, formats=args.figure_format)
     print(f"wrote {len(written)} files to {Path(args.directory) / FIGURES_DIR}")

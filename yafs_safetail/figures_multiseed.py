@@ -1,7 +1,7 @@
 """Figures across seeds: one use case and preset over several run folders, with 95% bands.
 
-``experiments/reproduce_all.py`` draws two per use case and preset into ``OUT/figures/``, each as
-PNG and PDF:
+``experiments/reproduce_all.py`` draws two per use case and preset into ``OUT/figures/``, each in
+the formats asked (``--figure-format``, PNG by default):
 
 * ``uc<N>-<preset>-latency-bands``: per method, the median, p90, p95 and p99 latency of the test
   phase as the mean over seeds of each seed's percentile, shaded with the 95% percentile-
@@ -37,6 +37,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from yafs_safetail import results
+from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.figures import _PHASE_COLOURS, _STYLE, _colour, _own_methods, _save
 from yafs_safetail.results import ResultsFileError
 from yafs_safetail.results.paper import PERCENTILE_NAMES
@@ -270,8 +271,9 @@ def _build(folders: Sequence[str | os.PathLike[str]]) -> tuple[SeedSeries, dict[
 
 
 def draw_multiseed_figures(folders: Sequence[str | os.PathLike[str]],
-                           out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Draw both figures into ``out_dir`` as PNG and PDF.
+                           out_dir: str | os.PathLike[str],
+                           formats: Sequence[str] = DEFAULT_FIGURE_FORMATS) -> list[Path]:
+    """Draw both figures into ``out_dir`` in each of ``formats`` (figures.FIGURE_FORMATS).
 
     Args:
         folders: run folders of one use case and preset, one per seed.
@@ -292,5 +294,5 @@ def draw_multiseed_figures(folders: Sequence[str | os.PathLike[str]],
     with matplotlib.rc_context(_STYLE):
         for key, figure in built.items():
             written += _save(figure, out, stems[key].format(use_case=series.use_case,
-                                                            preset=series.preset))
+                                                            preset=series.preset), formats)
     return written

@@ -18,7 +18,8 @@ yafs_safetail/results/feasibility.py), and gives, per use case and preset: the l
 seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones with a plain
 note where they differ, what the learner did (training rounds, final ε, servers used, target
 met, fallbacks) as the first place to look for why, figures across seeds with 95% bands
-(``OUT/figures/uc<N>-<preset>-latency-bands`` and ``-servers-bands``, PNG and PDF) and the
+(``OUT/figures/uc<N>-<preset>-latency-bands`` and ``-servers-bands``, PNG, or PDF too with
+``--figure-format png,pdf``) and the
 figures of the first seed. Every table of the report is also written as LaTeX
 (``OUT/tables/*.tex``, listed at the end of REPORT.md). Seeds must be distinct; the scorecard
 asks for at least five.
@@ -79,7 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
                 learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
                                        "report then says these are not the presets' results)"})
-    add_options(parser, only=("figures",), figures={"help": "skip the per-run figures"})
+    add_options(parser, only=("figures", "figure_formats"), figures={"help": "skip the per-run figures"})
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders in --out that hold another configuration")
     add_engine_options(parser)
@@ -99,7 +100,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     refuse_protected(args.out)
     # Every (use case, preset, seed) is one run of a campaign: resumable, in parallel with
     # --workers, each run's folder where it always was.
-    base = {"steps_scale": args.steps_scale, "figures": args.figures}
+    base = {"steps_scale": args.steps_scale, "figures": args.figures,
+            "figure_formats": args.figure_formats}
     overridable = ("target_compute", *(item.name for item in dataclasses.fields(LearnerOverrides)))
     base.update({name: getattr(args, name) for name in overridable if getattr(args, name) is not None})
     specs = expand(base,
@@ -111,6 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {outcome.failed} run(s) failed (see above); no report written; rerun the "
               "same command to retry them (finished runs are kept)", file=sys.stderr)
         return 1
-    report = write_report(args.out, args.uc, args.preset, args.seeds, command, args.learning_rate)
+    report = write_report(args.out, args.uc, args.preset, args.seeds, command, args.learning_rate,
+                          args.figure_formats)
     print(f"report: {report}")
     return 0

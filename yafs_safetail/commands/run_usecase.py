@@ -13,7 +13,7 @@ every 10% of a long phase; --quiet keeps warnings and errors only, --verbose add
 The output folder gets run.log (the command, the configuration, every phase with its time),
 requests.csv (one row per request and method), summary.csv and
 summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
-Figs. (a)-(g) under figures/ as PNG and PDF, and with --yafs-csv each method's YAFS result
+Figs. (a)-(g) under figures/ as PNG (--figure-format png,pdf adds PDF copies), and with --yafs-csv each method's YAFS result
 CSVs under yafs/ (about 70 MB for a full UC1 run, so only on request).
 """
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.methods.registry import SAFETAIL
 from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.paper import (
@@ -203,9 +204,10 @@ def scorecard_markdown(card: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def draw_scorecard(card: pd.DataFrame, stem: Path) -> list[Path]:
+def draw_scorecard(card: pd.DataFrame, stem: Path,
+                   formats: Sequence[str] = DEFAULT_FIGURE_FORMATS) -> list[Path]:
     """The paper's value against ours per ratio, log-log, identity line and ±20% band;
-    calibration and held-out ratios marked. Writes ``stem``.png and ``stem``.pdf."""
+    calibration and held-out ratios marked. Writes ``stem``.png and/or ``stem``.pdf (``formats``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -243,7 +245,7 @@ def draw_scorecard(card: pd.DataFrame, stem: Path) -> list[Path]:
     ax.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
     written = []
-    for suffix in (".png", ".pdf"):
+    for suffix in (f".{fmt}" for fmt in formats):
         path = stem.with_suffix(suffix)
         fig.savefig(path, dpi=150, metadata={"CreationDate": None} if suffix == ".pdf" else None)
         written.append(path)

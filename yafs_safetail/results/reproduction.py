@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from yafs_safetail import results
+from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.edge.calibration import CalibrationError, read_calibration, seed_set
 from yafs_safetail.figures import FIGURE_STEMS, FIGURES_DIR
 from yafs_safetail.figures_multiseed import (
@@ -140,8 +141,8 @@ def _tex_pointer(*names: str) -> str:
     return "LaTeX: " + ", ".join(links)
 
 
-def _section(use_case: int, preset: str, folders: Sequence[Path],
-             report_dir: Path) -> tuple[list[str], dict[str, str]]:
+def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Path,
+             figure_formats: Sequence[str]) -> tuple[list[str], dict[str, str]]:
     """One use case and preset: REPORT.md's lines and the LaTeX tables (name -> source)."""
     run = results.read_run_json(folders[0])
     stats = results.aggregate_summaries(folders)
@@ -160,7 +161,7 @@ def _section(use_case: int, preset: str, folders: Sequence[Path],
                     "in the test phase)."),
     }
     # The bands over seeds go beside the report (OUT/figures), not into a run's folder.
-    draw_multiseed_figures(folders, report_dir / FIGURES_DIR)
+    draw_multiseed_figures(folders, report_dir / FIGURES_DIR, figure_formats)
     figures_dir = folders[0] / FIGURES_DIR
     lines = [
         f"## Use case {use_case}: {run.use_case_name} — preset `{preset}`",
@@ -197,7 +198,8 @@ def _section(use_case: int, preset: str, folders: Sequence[Path],
     for stem, caption in ((LATENCY_BANDS_STEM, "latency percentiles per method"),
                           (SERVERS_BANDS_STEM, "SafeTail's servers per request over time")):
         png = Path(FIGURES_DIR) / f"{stem.format(use_case=use_case, preset=preset)}.png"
-        lines += [f"{caption}: ![{caption}]({png}) (also `.pdf`)", ""]
+        also = " (also `.pdf`)" if "pdf" in figure_formats else ""
+        lines += [f"{caption}: ![{caption}]({png}){also}", ""]
     lines += [f"### Figures (seed {run.seed})", ""]
     for panel, caption in FIGURE_CAPTIONS.items():
         png = figures_dir / f"{FIGURE_STEMS[panel]}.png"
@@ -240,7 +242,8 @@ def _header(command: str, differences: Sequence[str], learning_rate: float | Non
 
 def _scorecards(out: Path, use_cases: Sequence[int], presets: Sequence[str], seeds: Sequence[int],
                 summaries: dict[str, dict[int, list[pd.DataFrame]]],
-                worlds: dict[str, list[feasibility.WorldRun]]) -> tuple[list[str], dict[str, str]]:
+                worlds: dict[str, list[feasibility.WorldRun]], figure_formats: Sequence[str],
+                ) -> tuple[list[str], dict[str, str]]:
     """Each preset's fidelity scorecard and feasibility check: REPORT.md's lines and LaTeX
     tables (name -> source); writes fidelity.csv, feasibility.csv and the scorecard figures."""
     scorecard_lines, cards, checks = [], [], []
@@ -249,7 +252,7 @@ def _scorecards(out: Path, use_cases: Sequence[int], presets: Sequence[str], see
         card = fidelity.scorecard(summaries[preset])
         card.insert(0, "preset", preset)
         cards.append(card)
-        fidelity.draw_scorecard(card, out / f"{fidelity.FIDELITY_FIGURE}-{preset}")
+        fidelity.draw_scorecard(card, out / f"{fidelity.FIDELITY_FIGURE}-{preset}", figure_formats)
         few = (f" Only {len(seeds)} seed(s): the scorecard is meant for five or more."
                if len(seeds) < 5 else "")
         few += _calibration_seed_note(seeds)
@@ -287,7 +290,8 @@ def _scorecards(out: Path, use_cases: Sequence[int], presets: Sequence[str], see
 
 
 def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], seeds: Sequence[int],
-                 command: str, learning_rate: float | None = None) -> Path:
+                 command: str, learning_rate: float | None = None,
+                 figure_formats: Sequence[str] = DEFAULT_FIGURE_FORMATS) -> Path:
     """Assemble REPORT.md and its tables, figures and CSVs from the runs under ``out``.
 
     Args:
@@ -297,6 +301,7 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
         seeds: the seeds every (use case, preset) ran.
         command: the command line that made the runs (the report cites it).
         learning_rate: the learning rate every run used instead of its preset's, if any.
+        figure_formats: the formats of the report's figures (figures.FIGURE_FORMATS).
 
     Returns:
         The path of REPORT.md.
@@ -311,7 +316,7 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
         for preset in presets:
             folders = [out / RUN_FOLDER.format(use_case=use_case, preset=preset, seed=seed)
                        for seed in seeds]
-            lines, tables = _section(use_case, preset, folders, out)
+            lines, tables = _section(use_case, preset, folders, out, figure_formats)
             sections += lines
             section_tables.update(tables)
             summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
@@ -324,7 +329,8 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
             speedups.append(table)
 
     header = _header(command, differences, learning_rate)
-    scorecard_lines, scorecard_tables = _scorecards(out, use_cases, presets, seeds, summaries, worlds)
+    scorecard_lines, scorecard_tables = _scorecards(out, use_cases, presets, seeds, summaries, worlds,
+                                                    figure_formats)
     # Tables in the order REPORT.md shows them: scorecards first, then each use case.
     table_paths = latex.write_tables(out, {**scorecard_tables, **section_tables})
     report = "\n".join(header + scorecard_lines + sections

@@ -38,12 +38,15 @@ from typing import TYPE_CHECKING, Any
 # where it is used.
 from yafs_safetail import cli
 from yafs_safetail.defaults import (
+    DEFAULT_FIGURE_FORMATS,
     DEFAULT_PLACEMENT,
     DEFAULT_STEP_INTERVAL_S,
     DEFAULT_TOPOLOGY,
     DEFAULT_TRACE_DIR,
+    FIGURE_FORMATS,
     PRESET_NAMES,
     TARGET_COMPUTES,
+    figure_formats,
 )
 from yafs_safetail.edge.published import USE_CASES
 
@@ -111,6 +114,9 @@ def _redundancy_levels(text: str) -> tuple[int, ...]:
 
 
 #: Redundancy levels: their range depends on the topology, checked when it is read.
+FORMATS = Check(f"a list of {', '.join(FIGURE_FORMATS)}",
+                lambda v: isinstance(v, tuple) and bool(v) and all(x in FIGURE_FORMATS for x in v),
+                figure_formats)
 LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_integer(x) for x in v),
                _redundancy_levels)
 
@@ -135,6 +141,8 @@ class Setting:
             for a ``--no-...`` flag, ``"append"``).
         metavar: the option's value placeholder in the help.
         from_cli: turns the parsed value into the field's value (e.g. specs into methods).
+        in_grid: a campaign grid may set it although it does not change the results (which
+            copies of the figures a run draws); it stays out of the run id.
     """
 
     help: str
@@ -145,6 +153,7 @@ class Setting:
     action: str | None = None
     metavar: str | None = None
     from_cli: Callable[[Any], Any] | None = None
+    in_grid: bool = False
 
     def option(self, name: str) -> str:
         """The command-line option of the field ``name`` (``--steps-scale``), or ``""``."""
@@ -252,6 +261,11 @@ class Output:
     write_yafs_csv: bool = setting(False, "also write each method's YAFS result CSVs under yafs/ (~70 MB for UC1)",
                                    check=BOOLEAN, flag="--yafs-csv", action="store_true")
     figures: bool = setting(True, "skip the figures", check=BOOLEAN, flag="--no-figures", action="store_false")
+    # Which copies of the same figures: not part of the run id, like the run's log.
+    figure_formats: tuple[str, ...] = setting(
+        DEFAULT_FIGURE_FORMATS, "figure formats, comma-separated: png, pdf or png,pdf (default png; "
+        "PDF copies take as long again)", changes_results=False, check=FORMATS, flag="--figure-format",
+        metavar="FORMATS", in_grid=True)
     progress: bool = setting(True, "show progress bars on stderr (the phases are logged either way)",
                              changes_results=False, check=BOOLEAN, flag="")
     command: str = setting("", "the command line, recorded in run.json", changes_results=False, flag="")
@@ -288,6 +302,9 @@ RESULT_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig) 
 #: Fields that say where a run goes and how it shows itself, never what it computes.
 RUNTIME_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig)
                                         if not setting_of(f).changes_results)
+#: Runtime fields a campaign grid may still set (e.g. the figures' formats); not in the run id.
+GRID_RUNTIME_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig)
+                                             if setting_of(f).in_grid)
 
 
 # ----------------------------------------------------------------------------- derived

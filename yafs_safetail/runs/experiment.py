@@ -252,7 +252,7 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
 
         t0 = time.perf_counter()
         with Phase(f"{prefix} figures", logger=log):
-            draw_figures(staging, requests, run)
+            draw_figures(staging, requests, run, formats=config.figure_formats)
         timings["plotting"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - started
     return summary

@@ -39,7 +39,7 @@ import yafs_safetail
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.registry import UserMethod
-from yafs_safetail.runs.config import RESULT_FIELDS, ExperimentConfig
+from yafs_safetail.runs.config import GRID_RUNTIME_FIELDS, RESULT_FIELDS, ExperimentConfig
 from yafs_safetail.runs.config import RUNTIME_FIELDS as RUNTIME_FIELDS  # (re-exported)
 
 #: Hex digits of a run id: 48 bits, so two configurations of one campaign never share one.
@@ -47,8 +47,9 @@ ID_LENGTH = 12
 
 #: RUNTIME_FIELDS (from runs.config) say where a run goes and how it shows itself, never what
 #: it computes: the campaign sets them, and they are left out of the run id. A grid sets the
-#: others, every field that may change the results.
-SETTABLE_FIELDS = RESULT_FIELDS
+#: others, every field that may change the results (the run id hashes exactly these), and the
+#: few runtime fields declared ``in_grid`` (which copies of the figures to draw).
+SETTABLE_FIELDS = (*RESULT_FIELDS, *GRID_RUNTIME_FIELDS)
 #: Settable fields holding a file or folder (identified by place and content).
 PATH_FIELDS = tuple(f.name for f in fields(ExperimentConfig)
                     if f.name in SETTABLE_FIELDS and f.type in ("Path", "Path | None"))
@@ -125,7 +126,7 @@ def identity(settings: Mapping[str, Any]) -> dict[str, Any]:
     """Everything a run's results depend on, as canonical JSON values."""
     defaults = ExperimentConfig()
     full: dict[str, Any] = {}
-    for name in SETTABLE_FIELDS:
+    for name in RESULT_FIELDS:
         value = settings.get(name, _json_value(getattr(defaults, name)))
         if name in PATH_FIELDS and value is not None:
             value = file_identity(Path(value))
@@ -269,7 +270,7 @@ def load_grid(path: Path) -> list[RunSpec]:
 
 def config_run_id(config: ExperimentConfig) -> str:
     """The run id of an ExperimentConfig's settings (what its results depend on)."""
-    return run_id({name: _json_value(getattr(config, name)) for name in SETTABLE_FIELDS})
+    return run_id({name: _json_value(getattr(config, name)) for name in RESULT_FIELDS})
 
 
 def make_config(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> ExperimentConfig:
@@ -282,7 +283,7 @@ def make_config(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool
     for key, value in spec.settings.items():
         if key in PATH_FIELDS and value is not None:
             value = Path(value)
-        elif key == "redundancy_levels":
+        elif key in ("redundancy_levels", "figure_formats"):
             value = tuple(value)
         elif key == "methods":
             value = tuple(UserMethod(str(item)) for item in value)
