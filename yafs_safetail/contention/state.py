@@ -1,0 +1,207 @@
+"""What the contention engine's event loop moves around: servers, their links, requests, their
+copies and the copies' transfers (``contention.engine`` drives them).
+
+Plain objects with slots, compared by identity: the loop reads and writes their fields millions
+of times per run, and a slot is as fast to read as a list entry.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from yafs_safetail.contention.types import RequestBlock, RequestOutcome
+
+# A copy's states, in the order a copy moves through them; everything up to RUNNING can still
+# hold or take a slot, so ``state <= RUNNING`` reads "not past computing".
+TRANSIT = 0    # on its way to the server (its input on the down link, then ρ)
+QUEUED = 1     # waiting in the server's FIFO queue
+RUNNING = 2    # holding a slot, computing
+REPLYING = 3   # its reply on the up link, then ρ back
+DONE = 4       # its reply arrived
+CANCELLED = 5  # stopped by a cancel message (or never started)
+REFUSED = 6    # the server was full
+
+
+@dataclass(slots=True, eq=False)
+class Link:
+    """One direction of a server's network: ``is_up`` for replies, else inputs.
+
+    Attributes:
+        server: the server it belongs to (its background tenants share the link too).
+        is_up: True for the up link (replies), False for the down link (inputs).
+        transfers: the transfers on it now, in the order they joined.
+    """
+
+    server: Server
+    is_up: bool
+    transfers: list[Transfer] = field(default_factory=list)
+
+
+@dataclass(slots=True, eq=False)
+class Server:
+    """One edge server, processor-shared between the jobs running on it.
+
+    Attributes:
+        index: its position in the settings (and in a policy's choice).
+        slots: jobs that can run at once (ours and background tenants).
+        speed: per-job progress rate for each number of running jobs.
+        own: our copies running.
+        waiting: our copies in the queue (not cancelled).
+        background: background tenants now.
+        virtual_s: the service one job has received since the start (grows at ``speed[n]``).
+        virtual_at_s: when ``virtual_s`` was last brought up to date.
+        version: the number of its latest completion event (older ones are stale).
+        jobs: heap of (virtual time at which the job ends, sequence, copy).
+        queue: copies waiting for a slot, first come first served.
+        down: the link that carries inputs to it.
+        up: the link that carries its replies.
+    """
+
+    index: int
+    slots: int
+    speed: tuple[float, ...]
+    own: int = 0
+    waiting: int = 0
+    background: int = 0
+    virtual_s: float = 0.0
+    virtual_at_s: float = 0.0
+    version: int = 0
+    jobs: list[tuple[float, int, Copy]] = field(default_factory=list)
+    queue: deque[Copy] = field(default_factory=deque)
+    down: Link = field(init=False)
+    up: Link = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.down = Link(self, False)
+        self.up = Link(self, True)
+
+    def active_users(self) -> int:
+        """Ours running or waiting plus the background tenants (ℓ_i as a policy sees it)."""
+        return self.own + self.waiting + self.background
+
+    def advance(self, now_s: float) -> None:
+        """Bring the virtual time up to ``now_s`` at the current occupancy's speed."""
+        if self.own:
+            self.virtual_s += self.speed[self.own + self.background] * (now_s - self.virtual_at_s)
+        self.virtual_at_s = now_s
+
+    def next_end_s(self, now_s: float) -> float | None:
+        """When its first running job ends at the current speed (None: nothing runs); stale
+        jobs (cancelled) are dropped and the version moves on, so earlier end events go stale."""
+        jobs = self.jobs
+        while jobs and jobs[0][2].state != RUNNING:
+            heapq.heappop(jobs)
+        self.version += 1
+        if not jobs:
+            return None
+        end_s = now_s + (jobs[0][0] - self.virtual_s) / self.speed[self.own + self.background]
+        return end_s if end_s > now_s else now_s
+
+
+@dataclass(slots=True, eq=False)
+class Request:
+    """A request from its emission until its first reply (or fallback).
+
+    Attributes:
+        index: its position in emission order.
+        emit_s: when it was emitted.
+        copies: the copies sent so far, in sending order.
+        done: its first reply arrived, or every copy was refused.
+        refused: copies refused so far.
+        unsent: hedge only: the (server, block, row) of copies not sent yet, or None.
+        tied: tied only: one of its copies has started running.
+    """
+
+    index: int
+    emit_s: float
+    copies: list[Copy] = field(default_factory=list)
+    done: bool = False
+    refused: int = 0
+    unsent: list[tuple[int, RequestBlock, int]] | None = None
+    tied: bool = False
+
+
+@dataclass(slots=True, eq=False)
+class Copy:
+    """One copy of a request, sent to one server.
+
+    Attributes:
+        request: the request it belongs to.
+        server: where it goes.
+        work_s: its service need (seconds at speed 1).
+        propagation_s: ρ to its server, one way.
+        output_by_level: its output transfer term per contention level.
+        state: one of the module's copy states.
+        input_s: its input transfer term as it happened (0 until known).
+        output_s: its output transfer term as it happened (0 until known).
+        arrive_s: when it reached the server.
+        start_s: when it started running.
+        end_s: when it finished running.
+        transfer: the transfer it is in now (input or reply), or None.
+    """
+
+    request: Request
+    server: Server
+    work_s: float
+    propagation_s: float
+    output_by_level: list[float]
+    state: int = TRANSIT
+    input_s: float = 0.0
+    output_s: float = 0.0
+    arrive_s: float = 0.0
+    start_s: float = 0.0
+    end_s: float = 0.0
+    transfer: Transfer | None = None
+
+
+@dataclass(slots=True, eq=False)
+class Transfer:
+    """A copy's input or reply on a shared link, processor-shared with the others there.
+
+    Attributes:
+        copy: whose data it carries.
+        link: the link it is on.
+        time_by_level_s: one of Eq. 1's two equal terms per contention level (the whole transfer
+            takes twice that).
+        started_s: when it joined the link.
+        left: the fraction of it still to send at ``since_s``.
+        since_s: when ``left`` was last brought up to date.
+        whole_s: the whole transfer's time at the link's current level (0 before the first).
+        version: the number of its latest end event (older ones are stale).
+    """
+
+    copy: Copy
+    link: Link
+    time_by_level_s: list[float]
+    started_s: float
+    left: float = 1.0
+    since_s: float = 0.0
+    whole_s: float = 0.0
+    version: int = 0
+
+    def rescale(self, now_s: float, level: int) -> float:
+        """Bring it up to ``now_s`` at its old pace and return its end at ``level`` (a new
+        version: earlier end events go stale)."""
+        whole_s = self.whole_s
+        if whole_s > 0.0:
+            self.left -= (now_s - self.since_s) / whole_s
+        self.since_s = now_s
+        whole_s = 2.0 * self.time_by_level_s[level]
+        self.whole_s = whole_s
+        self.version += 1
+        left = self.left
+        return now_s + left * whole_s if left > 0.0 else now_s
+
+
+def outcome(request: Request, latency_s: float, copy: Copy | None) -> RequestOutcome:
+    """How ``request`` ended: with ``copy``'s reply after ``latency_s``, or (None) the fallback."""
+    sent = tuple(c.server.index for c in request.copies)
+    if copy is None:
+        return RequestOutcome(request.index, request.emit_s, latency_s, sent, request.refused, True, -1,
+                              math.nan, math.nan, math.nan, math.nan)
+    return RequestOutcome(request.index, request.emit_s, latency_s, sent, request.refused, False,
+                          copy.server.index, copy.input_s, copy.output_s, copy.propagation_s,
+                          copy.end_s - copy.arrive_s)
