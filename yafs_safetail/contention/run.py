@@ -15,9 +15,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from yafs_safetail.contention.engine import EngineResult, RequestOutcome, run_engine
+from yafs_safetail.contention.engine import DISPATCH_MODES, EngineResult, RequestOutcome, run_engine
 from yafs_safetail.contention.world import ContentionWorld
-from yafs_safetail.methods.policy import Policy, PolicyError, checked_choice
+from yafs_safetail.methods.policy import (
+    DispatchSupport,
+    HedgingPolicy,
+    Policy,
+    PolicyError,
+    check_dispatch,
+    checked_choice,
+)
 from yafs_safetail.record import RequestRecord
 
 #: The share of a run's first requests left out of its figures: the servers start empty.
@@ -29,6 +36,9 @@ WARMUP_FRACTION = 0.05
 #: was dispatched (``ContentionWorld.observed_load_target_s``; docs/deviations.md D12).
 TARGETS = ("eq4", "observed-load")
 
+#: The contention world runs every mode its engine does.
+DISPATCH = DispatchSupport("the contention world", DISPATCH_MODES)
+
 
 class PolicyDispatcher:
     """The engine's view of a policy: choices checked, records built only when wanted."""
@@ -36,9 +46,11 @@ class PolicyDispatcher:
     def __init__(self, world: ContentionWorld, policy: Policy, target: str = "eq4") -> None:
         if target not in TARGETS:
             raise PolicyError(f"target {target!r}: expected one of {', '.join(TARGETS)}")
+        check_dispatch(policy, DISPATCH)
         self.world = world
         self.policy = policy
         self.mode = policy.dispatch
+        self._hedging = policy if isinstance(policy, HedgingPolicy) else None
         self.wants_outcomes = type(policy).feedback is not Policy.feedback
         self._checked: set[tuple[int, ...]] = set()
         self._n = world.n_servers
@@ -60,7 +72,8 @@ class PolicyDispatcher:
         return servers
 
     def hedge_delay_s(self) -> float:
-        return self.policy.hedge_delay_s()
+        assert self._hedging is not None  # check_dispatch: a hedging policy has it
+        return self._hedging.hedge_delay_s()
 
     def completed(self, outcome: RequestOutcome) -> None:
         transfer_s = outcome.input_transfer_s + outcome.output_transfer_s

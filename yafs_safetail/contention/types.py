@@ -10,8 +10,9 @@ from typing import Protocol
 
 import numpy as np
 
-#: How copies of a request are sent: all at once, one then the next after a delay (hedged
-#: request), or all at once with the others cancelled when one starts running (tied request).
+#: The dispatch modes the engine runs (the contention world's declaration): copies all at once,
+#: one then the next after a delay (hedged request), or all at once with the others cancelled
+#: when one starts running (tied request).
 DISPATCH_MODES: tuple[str, ...] = ("all", "hedge", "tied")
 
 

@@ -1,6 +1,7 @@
-"""Dean & Barroso's "The Tail at Scale" (CACM 2013) requests as baselines for the contention
-world: a hedged request (a second copy only when the first is late) and a tied request (two
-copies that cancel each other once one starts running)."""
+"""Dean & Barroso's "The Tail at Scale" (CACM 2013) requests as baselines: a hedged request (a
+second copy only when the first is late, ``dispatch = "hedge"``) and a tied request (two copies
+that cancel each other once one starts running, ``dispatch = "tied"``). They only ask for those
+modes; a world that does not run them refuses them (``methods.policy.check_dispatch``)."""
 
 from __future__ import annotations
 

@@ -21,7 +21,8 @@ A new policy in a few lines::
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import ClassVar
+from dataclasses import dataclass
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -31,6 +32,54 @@ from yafs_safetail.record import RequestRecord
 
 class PolicyError(ValueError):
     """A bad policy, policy parameter or method name (one line naming it)."""
+
+
+#: How a policy can ask for its chosen servers' copies to be sent (``Policy.dispatch``):
+#: ``"all"`` at once; ``"hedge"``, the first now and each next one if no reply came within the
+#: policy's ``hedge_delay_s()`` (see :class:`HedgingPolicy`); ``"tied"``, all at once, the others
+#: cancelled as soon as one starts running. Which of them a world can run is the world's to
+#: say (its :class:`DispatchSupport`).
+DISPATCH_MODES: tuple[str, ...] = ("all", "hedge", "tied")
+
+
+@runtime_checkable
+class HedgingPolicy(Protocol):
+    """What a policy asking for ``dispatch = "hedge"`` adds."""
+
+    def hedge_delay_s(self) -> float:
+        """How long to wait for a reply before the next copy (inf: only after a refusal)."""
+        ...
+
+
+@dataclass(frozen=True)
+class DispatchSupport:
+    """A world's declaration of the dispatch modes it runs.
+
+    Attributes:
+        world: its name in messages (e.g. ``"the single-user world"``).
+        modes: the modes it runs, from :data:`DISPATCH_MODES`.
+        elsewhere: where the other modes run, for the refusal (empty: nowhere else).
+    """
+
+    world: str
+    modes: tuple[str, ...]
+    elsewhere: str = ""
+
+
+def check_dispatch(policy: Policy, support: DispatchSupport) -> None:
+    """The one check, made by each world before a policy's first request, that the world can
+    send copies as ``policy`` asks.
+
+    Raises:
+        PolicyError: one line naming the method, its dispatch mode and the world.
+    """
+    mode = policy.dispatch
+    if mode not in support.modes:
+        needs = f"needs {support.elsewhere}" if support.elsewhere else "is not supported"
+        runs = ", ".join(repr(m) for m in support.modes)
+        raise PolicyError(f"{policy.name}: dispatch {mode!r} {needs}; {support.world} runs {runs}")
+    if mode == "hedge" and not isinstance(policy, HedgingPolicy):
+        raise PolicyError(f"{policy.name}: dispatch 'hedge' needs a hedge_delay_s() method")
 
 
 def checked_choice(chosen: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
@@ -57,12 +106,10 @@ class Policy:
         name: the method's name in results (default: the class name).
         observes: False for a policy that never reads ω^t: its :meth:`choose` then gets None,
             which saves building the state for every request.
-        dispatch: how the chosen servers get their copies: ``"all"`` at once (every method of
-            the paper); ``"hedge"``, the first now and each next one if no reply came within
-            :meth:`hedge_delay_s`; ``"tied"``, all at once, the others cancelled as soon as one
-            starts running. The last two exist only in the contention world
-            (``yafs_safetail.contention``), where copies cost other requests something. A class
-            attribute; SafeTail sets it per instance.
+        dispatch: how the chosen servers get their copies, one of :data:`DISPATCH_MODES`
+            (default ``"all"``, every method of the paper). A policy only asks; each world says
+            which modes it runs and refuses the others before the first request
+            (:func:`check_dispatch`). A class attribute; SafeTail sets it per instance.
     """
 
     name: str = ""
@@ -82,10 +129,6 @@ class Policy:
             observation: ω^t when the request is issued, or None when ``observes`` is False.
         """
         raise NotImplementedError(f"{type(self).__name__} must implement choose(observation)")
-
-    def hedge_delay_s(self) -> float:
-        """For ``dispatch = "hedge"``: how long to wait for a reply before the next copy."""
-        raise NotImplementedError(f"{type(self).__name__} does not hedge")
 
     def feedback(self, outcome: RequestRecord) -> RequestRecord | None:
         """Called once per completed request, in completion order (optional).

@@ -8,7 +8,13 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.methods.policy import Policy, PolicyError, checked_choice
+from yafs_safetail.methods.policy import (
+    DispatchSupport,
+    Policy,
+    PolicyError,
+    check_dispatch,
+    checked_choice,
+)
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.sim.hooks import SINK_MODULE, EdgeModel
 from yafs_safetail.yafs.selection import Selection
@@ -16,6 +22,11 @@ from yafs_safetail.yafs.selection import Selection
 if TYPE_CHECKING:
     from yafs_safetail.yafs.core import Sim
     from yafs_safetail.yafs.outcomes import RequestOutcome
+
+
+#: The single-user world sends every chosen copy at once.
+DISPATCH = DispatchSupport("the single-user world", ("all",),
+                           elsewhere="the contention world (experiments/load_sweep.py)")
 
 
 def checked_subset(subset: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
@@ -46,11 +57,7 @@ class PolicySelection(Selection):
     def __init__(self, edge_model: EdgeModel, policy: Policy,
                  on_record: Callable[[RequestRecord], None] | None = None) -> None:
         super().__init__()
-        if policy.dispatch != "all":
-            raise PolicyError(
-                f"{policy.name}: dispatch {policy.dispatch!r} needs the contention world "
-                "(experiments/load_sweep.py); the single-user world sends every copy at once"
-            )
+        check_dispatch(policy, DISPATCH)
         self.edge_model = edge_model
         self.policy = policy
         self.name = policy.name
