@@ -19,7 +19,7 @@ import signal
 import tarfile
 import tempfile
 import time
-from collections.abc import Collection, Iterable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -66,25 +66,41 @@ def one_line(error: BaseException) -> str:
     return f"{type(error).__name__}: {message}" if message else type(error).__name__
 
 
+def _run_experiment(task: RunTask) -> None:
+    from yafs_safetail.runs import checkpoint
+    from yafs_safetail.runs.experiment import run_experiment
+
+    config = make_config(task.spec, Path(task.out_dir), task.command, task.overwrite)
+    # A run of this campaign interrupted while training goes on from its checkpoint (same run
+    # id: the same configuration and code); any other starts over.
+    if checkpoint.matches(Path(task.out_dir).resolve(), config_run_id(config)):
+        config = replace(config, resume=True)
+    run_experiment(config)
+
+
+def _run_load_point(task: RunTask) -> None:
+    from yafs_safetail.contention.sweep import run_load_point
+
+    run_load_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
+
+
+#: What executes each kind of run (``RunSpec.kind``); each imports its machinery when it runs.
+RUN_KINDS: dict[str, Callable[[RunTask], None]] = {
+    "experiment": _run_experiment,
+    "load_point": _run_load_point,
+}
+
+
 def execute(task: RunTask) -> RunResult:
     """Run one experiment (or one load of a load sweep); a failure is returned, never raised,
     so the others go on."""
     started = time.perf_counter()
     try:
-        if task.spec.kind == "load_point":
-            from yafs_safetail.contention.sweep import run_load_point
-
-            run_load_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
-        else:
-            from yafs_safetail.runs import checkpoint
-            from yafs_safetail.runs.experiment import run_experiment
-
-            config = make_config(task.spec, Path(task.out_dir), task.command, task.overwrite)
-            # A run of this campaign interrupted while training goes on from its checkpoint
-            # (same run id: the same configuration and code); any other starts over.
-            if checkpoint.matches(Path(task.out_dir).resolve(), config_run_id(config)):
-                config = replace(config, resume=True)
-            run_experiment(config)
+        runner = RUN_KINDS.get(task.spec.kind)
+        if runner is None:
+            raise ValueError(f"run {task.spec.name}: unknown kind {task.spec.kind!r}; "
+                             f"valid: {', '.join(RUN_KINDS)}")
+        runner(task)
         error = ""
     except Exception as exc:  # any run's failure, bug or bad input, is that run's alone
         error = one_line(exc)
