@@ -43,7 +43,16 @@ class Dispatcher(Protocol):
 
 @dataclass(frozen=True, slots=True)
 class RequestOutcome:
-    """How one request ended.
+    """How one request ended, at its first reply (or fallback): what the engine tells the
+    dispatcher, which turns it into the policy's :class:`~yafs_safetail.record.RequestRecord`
+    (the request outcome every world gives a policy).
+
+    Not the core's ``yafs.outcomes.RequestOutcome``, though both describe a request and its first
+    reply: the core's is built once every copy has settled (each copy's status, YAFS process and
+    node; refusals counted over all copies) and holds no Eq. 1 parts, while this one comes at the
+    first reply, when the policy's feedback is due, with the winning copy's Eq. 1 parts. Built
+    from the core's type, it would have to wait for the slowest copy, which moves every
+    learner's feedback and so changes results files.
 
     Attributes:
         request: its index (emission order).
