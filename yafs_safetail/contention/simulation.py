@@ -54,10 +54,10 @@ class Simulation:
         self.servers = [Server(i, spec.slots, spec.speed) for i, spec in enumerate(settings.servers)]
         self.levels = settings.contention_levels
         self.top_level = self.levels - 1
-        self.queue = settings.queue
+        self.queue_when_full = settings.queue
         self.shared_links = settings.shared_links
         self.dispatcher = dispatcher
-        self.hedge = dispatcher.mode == "hedge"
+        self.hedged = dispatcher.mode == "hedge"
         self.tied = dispatcher.mode == "tied"
         self.wants_outcomes = dispatcher.wants_outcomes
         self.events: list[Event] = []
@@ -105,6 +105,7 @@ class Simulation:
         return result
 
     def schedule(self, at_s: float, handler: Callable[[Any, int], None], subject: Any, version: int = 0) -> None:
+        """``handler(subject, version)`` at ``at_s`` (after the events already due then)."""
         _push(self.events, (at_s, next(self.sequence), handler, subject, version))
 
     def level_of(self, users: int) -> int:
@@ -121,9 +122,10 @@ class Simulation:
         tables = self.tables
         assert tables is not None
         row = j - tables.first
+        # (Server.active_users inlined: this runs once per server per request.)
         chosen = list(self.dispatcher.choose(j, [s.own + s.waiting + s.background for s in self.servers]))
         request = Request(j, self.now_s)
-        if not self.hedge:
+        if not self.hedged:
             for index in chosen:
                 self.send(request, index, tables, row)
             return
@@ -207,7 +209,7 @@ class Simulation:
     def occupancy_changed(self, server: Server) -> None:
         """Occupancy changed (server advanced to now): waiting copies may start, and the next
         completion moves."""
-        if self.queue:
+        if self.queue_when_full:
             queue = server.queue
             while queue and server.own + server.background < server.slots:
                 copy = queue.popleft()
@@ -288,11 +290,11 @@ class Simulation:
             return
         server = copy.server
         copy.arrive_s = self.now_s
-        if server.own + server.background < server.slots and not (self.queue and server.waiting):
+        if server.own + server.background < server.slots and not (self.queue_when_full and server.waiting):
             server.advance(self.now_s)
             self.start(server, copy)
             self.reschedule(server)
-        elif self.queue:
+        elif self.queue_when_full:
             copy.state = QUEUED
             server.waiting += 1
             server.queue.append(copy)
@@ -302,7 +304,7 @@ class Simulation:
             request.refused += 1
             if request.done:
                 return
-            if self.hedge and request.unsent:
+            if self.hedged and request.unsent:
                 self.send_next_hedge(request)
             elif all(c.state == REFUSED for c in request.copies) and not request.unsent:
                 self.finish(request, self.settings.fallback_latency_s, None)
