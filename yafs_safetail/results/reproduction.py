@@ -141,6 +141,11 @@ def _tex_pointer(*names: str) -> str:
     return "LaTeX: " + ", ".join(links)
 
 
+def _table_block(title: str, markdown: str, tex_name: str) -> list[str]:
+    """A REPORT.md subsection: its title, the table and where its LaTeX twin is."""
+    return [f"### {title}", "", markdown.rstrip("\n"), "", _tex_pointer(tex_name), ""]
+
+
 def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Path,
              figure_formats: Sequence[str]) -> tuple[list[str], dict[str, str]]:
     """One use case and preset: REPORT.md's lines and the LaTeX tables (name -> source)."""
@@ -170,24 +175,11 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
         f"{run.train_steps} training steps, {run.test_steps} test steps per method; "
         f"topology `{run.topology}`.",
         "",
-        "### Latency (test phase)",
-        "",
-        results.aggregate_markdown(stats).rstrip("\n"),
-        "",
-        _tex_pointer(names["latency"]),
-        "",
-        "### Our ratios beside the paper's",
-        "",
-        results.comparison_markdown(ratios).rstrip("\n"),
-        "",
-        _tex_pointer(names["ratios"]),
-        "",
-        "### What SafeTail did",
-        "",
-        *results.frame_markdown(diagnostics),
-        "",
-        _tex_pointer(names["learner"]),
-        "",
+        *_table_block("Latency (test phase)", results.aggregate_markdown(stats), names["latency"]),
+        *_table_block("Our ratios beside the paper's", results.comparison_markdown(ratios),
+                      names["ratios"]),
+        *_table_block("What SafeTail did", "\n".join(results.frame_markdown(diagnostics)),
+                      names["learner"]),
         "### Why our ratios may differ (read off these runs)",
         "",
         *_why_lines(folders),
