@@ -206,9 +206,19 @@ def test_load_sweep_small_budget(tmp_path):
     frame = pd.read_csv(out / "sweep.csv")
     for column in ("load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"):
         assert column in frame.columns
-    assert sorted(set(frame["method"])) == ["MinLoad-1", "Oracle", "SafeTail", "Tied"]
+    # Both SafeTails by default, each named for its learner, before the fixed methods.
+    assert list(frame[frame["load"] == 0.2]["method"]) == ["SafeTail", "SafeTail-CA", "Oracle", "MinLoad-1", "Tied"]
     assert (frame["n_requests"] == 380).all() and set(frame["load"]) == {0.2, 0.8}
-    for name in ("SWEEP.md", "sweep_latency.png", "sweep_copies.png", "run.json", "load-0.2/sweep.csv",
+    report = (out / "SWEEP.md").read_text()
+    assert "SafeTail: preset `paper`, learner `target-vector`, reward `paper`, dispatch `all`" in report
+    assert ("SafeTail-CA: preset `tuned`, learner `value` (3 networks averaged), reward `latency-cost`, "
+            "dispatch `tied`" in report)
+    assert "| SafeTail-CA p99 <= 1.05x best fixed at load 0.8 |" in report
+    assert "| load | SafeTail | SafeTail-CA | Oracle | MinLoad-1 | Tied |" in done.stdout
+    safetails = json.loads((out / "run.json").read_text())["safetails"]
+    assert [(s["name"], s["learner"], s["preset"], s["dispatch"]) for s in safetails] == [
+        ("SafeTail", "target-vector", "paper", "all"), ("SafeTail-CA", "value", "tuned", "tied")]
+    for name in ("SWEEP.md", "sweep.png", "sweep_latency.png", "run.json", "load-0.2/sweep.csv",
                  "load-0.8/run.json", "campaign.json"):
         assert (out / name).is_file(), name
     # Each load's run.log: the command and what each method measured there.
@@ -384,6 +394,7 @@ def test_load_sweep_target_and_links_options(tmp_path):
     out = tmp_path / "sweep"
     done = subprocess.run([sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
                            "--methods", "Oracle", "--target", "observed-load", "--links", "at-start",
+                           "--learner", "target-vector",
                            "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
@@ -415,6 +426,44 @@ def test_sweep_checks_are_computed_from_the_rows():
     # One load says nothing of how the copies or Oracle follow the load: those goals are left out.
     single = {claim for claim, _, _ in sweep_checks(frame[frame["load"] == 0.9])}
     assert single == {"SafeTail p99 <= 1.05x best fixed at load 0.9", "SafeTail p99 < Oracle's at load 0.9"}
+
+
+def test_both_safetails_are_checked_and_neither_is_a_fixed_method():
+    from yafs_safetail.contention.sweep import (
+        SAFETAIL_CA,
+        best_fixed_p99,
+        glance_markdown,
+        seeds_markdown,
+        sweep_checks,
+    )
+
+    def row(load, method, p99_s, copies):
+        return {"load": load, "method": method, "p99_s": p99_s, "mean_n_selected": copies}
+
+    frame = pd.DataFrame([row(0.1, "SafeTail", 2.0, 1.0), row(0.1, SAFETAIL_CA, 1.0, 3.5),
+                          row(0.1, "Tied", 1.5, 2.0), row(0.1, "Oracle", 1.9, 5.0),
+                          row(0.9, "SafeTail", 900.0, 5.0), row(0.9, SAFETAIL_CA, 3.9, 2.2),
+                          row(0.9, "Tied", 4.0, 2.0), row(0.9, "Oracle", 990.0, 5.0)])
+    # The SafeTails beat Tied at 0.1 but are never "the best fixed method".
+    assert best_fixed_p99(frame, 0.1) == ("Tied", 1.5)
+    checks = {claim: holds for claim, holds, _ in sweep_checks(frame)}
+    assert checks["SafeTail-CA: fewer copies as load rises"] and not checks["SafeTail: fewer copies as load rises"]
+    assert checks["SafeTail-CA p99 <= 1.05x best fixed at load 0.9"]
+    assert not checks["SafeTail p99 <= 1.05x best fixed at load 0.9"]
+    assert checks["SafeTail-CA p99 < Oracle's at load 0.9"] and checks["SafeTail p99 < Oracle's at load 0.9"]
+    glance = glance_markdown(frame)
+    assert "| load | SafeTail | SafeTail-CA | Tied | Oracle |" in glance
+    assert "| 0.9 | 900 | 3.90 | **4.00** | 990 |" in glance and "| 0.9 | 5.00 | 2.20 | 2.00 | 5.00 |" in glance
+    report = seeds_markdown({7: frame})
+    assert "Each cell: SafeTail's p99" in report and "Each cell: SafeTail-CA's p99" in report
+    assert "| 7 | 0.67 (Tied), 3.50 | 0.97 (Tied), 2.20 |" in report
+    # The learners are named once each, from the two objectives.
+    with pytest.raises(ContentionError, match="learners"):
+        SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("value", "value"))
+    config = SweepConfig(base=ContentionConfig(), loads=(0.5,), preset="paper", dispatch="all")
+    assert [(v.name, v.preset, v.dispatch) for v in config.safetails] == [
+        ("SafeTail", "paper", "all"), ("SafeTail-CA", "paper", "all")]
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), safetail=False).safetails == ()
 
 
 def test_load_sweep_test_requests_option(tmp_path):
@@ -593,15 +642,15 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
                "--value-networks", "2", "--seed", "2", "--out", str(out)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    run = json.loads((out / "run.json").read_text())
-    assert (run["learner"], run["safetail_dispatch"], run["reward"]) == ("value", "tied", "latency-cost")
-    assert run["value_networks"] == 2
+    [safetail] = json.loads((out / "run.json").read_text())["safetails"]
+    assert (safetail["learner"], safetail["dispatch"], safetail["reward"]) == ("value", "tied", "latency-cost")
+    assert safetail["n_networks"] == 2
     settings = json.loads((out / "campaign.json").read_text())["runs"][0]["settings"]
-    assert (settings["learner"], settings["dispatch"], settings["value_networks"]) == ("value", "tied", 2)
+    assert (settings["learner"], settings["dispatch"], settings["value_networks"]) == (["value"], "tied", 2)
     frame = pd.read_csv(out / "sweep.csv")
-    assert list(frame["method"]) == ["SafeTail", "Tied"]
-    assert ("SafeTail: preset `tuned`, learner `value` (2 networks averaged), reward `latency-cost`, target `eq4`, "
-            "dispatch `tied`."
+    assert list(frame["method"]) == ["SafeTail-CA", "Tied"]
+    assert ("SafeTail-CA: preset `tuned`, learner `value` (2 networks averaged), reward `latency-cost`, "
+            "dispatch `tied`, target `eq4`."
             in (out / "SWEEP.md").read_text())
     # Same seed, same bytes.
     again = tmp_path / "again"
@@ -611,15 +660,15 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "the value learner has its own reward" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
-    bad = subprocess.run([sys.executable, str(SWEEP), "--value-networks", "2", "--out", str(tmp_path / "b")],
-                         capture_output=True, text=True, timeout=120)
-    assert bad.returncode == 2 and "--value-networks 2: only with --learner value" in bad.stderr
+    bad = subprocess.run([sys.executable, str(SWEEP), "--value-networks", "2", "--learner", "target-vector",
+                          "--out", str(tmp_path / "b")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "--value-networks 2: only with the value learner" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
     with pytest.raises(ContentionError, match="only the value learner averages networks"):
-        SweepConfig(base=ContentionConfig(), loads=(0.5,), value_networks=2)
+        SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("target-vector",), value_networks=2)
     # Unless told, the value learner averages DEFAULT_VALUE_NETWORKS networks; §III's has one.
-    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), learner="value").n_value_networks == 3
-    assert SweepConfig(base=ContentionConfig(), loads=(0.5,)).n_value_networks == 1
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("value",)).n_value_networks == 3
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("target-vector",)).n_value_networks == 1
 
 
 def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch):
@@ -646,7 +695,7 @@ def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch)
 @pytest.mark.slow  # several seeds of the sweep; test_load_sweep_small_budget runs the entry point
 def test_load_sweep_over_seeds(tmp_path):
     common = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.2,0.8", "--steps-scale", "0.02",
-              "--methods", "MinLoad-1,Tied"]
+              "--methods", "MinLoad-1,Tied", "--learner", "target-vector"]
     out = tmp_path / "seeds"
     done = subprocess.run([*common, "--seeds", "3,5", "--workers", "2", "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
@@ -672,7 +721,7 @@ def test_load_sweep_over_seeds(tmp_path):
     for seed in (3, 5):
         frame = pd.read_csv(out / f"seed-{seed}" / "sweep.csv")
         at = frame[frame["load"] == 0.8].set_index("method")
-        best = at.drop(index="SafeTail")["p99_s"]
+        best = at.drop(index=["SafeTail"])["p99_s"]
         ratios.append(at.loc["SafeTail", "p99_s"] / best.min())
         assert f"{ratios[-1]:.2f} ({best.idxmin()}), {at.loc['SafeTail', 'mean_n_selected']:.2f}" in report
     summary = next(line for line in report.splitlines() if line.startswith("| median (min–max) |"))

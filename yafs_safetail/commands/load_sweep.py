@@ -3,19 +3,26 @@
     python experiments/load_sweep.py --uc 1 --users 50 --loads 0.1,0.3,0.5,0.7,0.9 --seed 0 \\
         --steps-scale 1 --out results/sweep_uc1
 
+Two SafeTails run beside the fixed methods by default, each trained at each load (its preset's
+training budget × --steps-scale) and tested greedily: SafeTail, the paper's learner (§III's
+target vector, Eq. 5, preset paper, copies sent all at once), and SafeTail-CA, the
+contention-aware one beyond the paper (a value learner that prices each copy by the jobs it
+joins, preset tuned, tied copies; docs/deviations.md D13). --learner target-vector or
+--learner value runs one of them alone; --no-safetail neither.
+
 Writes OUT/sweep.csv (one row per load and method: load, method, n_requests, p50_s, p99_s,
-mean_n_selected, fallback_rate, ...), OUT/SWEEP.md (the table and the sweep's goals, each
-computed, never assumed: Oracle's p99 at the highest load at least 1.5x its p99 at the lowest,
-and worse than single dispatch beyond some load; SafeTail sending fewer copies as the load
-rises, its p99 at most 1.05x the best fixed method's at every load, and below Oracle's from
-load 0.7), OUT/sweep_latency.png (p50 and p99 against load), OUT/sweep_copies.png and
-OUT/run.json (the settings and this command). SafeTail is trained at each load (the preset's
-training budget × --steps-scale) and tested greedily; see docs/contention.md.
+mean_n_selected, fallback_rate, ...), OUT/SWEEP.md (p99 and copies per load and method, the
+full table and the sweep's goals, each computed, never assumed: Oracle's p99 at the highest load
+at least 1.5x its p99 at the lowest, and worse than single dispatch beyond some load; each
+SafeTail sending fewer copies as the load rises, its p99 at most 1.05x the best fixed method's
+at every load, and below Oracle's from load 0.7), OUT/sweep.png (p99 on a log scale and copies
+per request against load, both SafeTails highlighted), OUT/sweep_latency.png (p50 and p99) and
+OUT/run.json (the settings and this command); see docs/contention.md.
 
 With --seeds 0,1,2 (instead of --seed) every seed's sweep goes into OUT/seed-<S>/ as above, and
-OUT/seeds.csv (every seed's sweep.csv rows, with a seed column) and OUT/SEEDS.md (SafeTail's p99
-over the best fixed method's per seed and load, and in how many seeds each goal holds) compare
-them.
+OUT/seeds.csv (every seed's sweep.csv rows, with a seed column) and OUT/SEEDS.md (each SafeTail's
+p99 over the best fixed method's per seed and load, and in how many seeds each goal holds)
+compare them.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +50,7 @@ from yafs_safetail.cli import (
 from yafs_safetail.contention.sweep import (
     SweepConfig,
     checks_markdown,
+    glance_markdown,
     load_point_specs,
     markdown_table,
     plot_sweep,
@@ -93,17 +101,17 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
     table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
     write_text_atomic(folder / "SWEEP.md",
                       f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, {args.links} links, seed {seed})\n\n"
-                      + _safetail_line(args, config) + f"`{command}`\n\n" + markdown_table(table)
+                      + _safetail_lines(config) + f"`{command}`\n\n" + glance_markdown(frame)
+                      + "\n## Every row\n\n" + markdown_table(table)
                       + "\n\n## Goals\n\n" + checks_markdown(frame))
     plot_sweep(frame, folder)
     write_text_atomic(folder / "run.json", json.dumps({
         "package_version": __version__, "command": command, "kind": SWEEP_KIND,
         "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": seed,
-        "steps_scale": config.steps_scale, "preset": config.preset, "reward": config.safetail_reward,
-        "target": config.target, "learner": config.learner, "safetail_dispatch": config.dispatch,
+        "steps_scale": config.steps_scale, "target": config.target,
+        "safetails": [asdict(variant) for variant in config.safetails],
         "servers": args.servers, "cancel": not args.no_cancel, "background": args.background, "links": args.links,
-        "methods": list(config.methods), "safetail": config.safetail, "train_requests": config.train_requests,
-        "test_requests": config.test_requests, "value_networks": config.n_value_networks,
+        "methods": list(config.methods), "test_requests": config.test_requests,
         "topology": str(args.topology),
         "placement": str(args.placement), "user_conditions": str(args.user_conditions),
         "load_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}, indent=1) + "\n")
@@ -113,10 +121,10 @@ def _write_csv(path: Path, frame: pd.DataFrame) -> None:
     write_text_atomic(path, frame.to_csv(index=False, float_format="%.6g"))
 
 
-def _safetail_line(args: argparse.Namespace, config: SweepConfig) -> str:
-    networks = f" ({config.n_value_networks} networks averaged)" if config.n_value_networks > 1 else ""
-    return (f"SafeTail: preset `{config.preset}`, learner `{config.learner}`{networks}, "
-            f"reward `{config.safetail_reward}`, target `{config.target}`, dispatch `{config.dispatch}`.\n\n")
+def _safetail_lines(config: SweepConfig) -> str:
+    """How each SafeTail of the sweep learns and sends, one line each (none: fixed methods only)."""
+    lines = [f"{variant.name}: {variant.describe()}, target `{config.target}`." for variant in config.safetails]
+    return "".join(f"{line}\n\n" for line in lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -132,7 +140,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "compared in OUT/SEEDS.md")
     # The sweep's own settings, each declared once in contention.sweep.SweepConfig.
     add_options(parser, SweepConfig, only=("steps_scale", "test_requests_per_load", "preset", "reward", "target",
-                                           "learner", "value_networks", "dispatch"))
+                                           "learners", "value_networks", "dispatch"))
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
@@ -156,8 +164,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_verbosity(args)
     for name in args.methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
-    if args.value_networks is not None and args.learner != "value":
-        raise ContentionError(f"--value-networks {args.value_networks}: only with --learner value")
+    if args.value_networks is not None and "value" not in args.learners:
+        raise ContentionError(f"--value-networks {args.value_networks}: only with the value learner "
+                              "(SafeTail-CA)")
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     several = args.seeds is not None
     config: SweepConfig = config_from_args(
@@ -200,7 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         write_text_atomic(out / "SEEDS.md",
                           f"# Load sweep over {len(seed_list)} seeds (use case {args.uc}, {args.users} users, "
                           f"{args.servers}, {args.links} links, seeds {', '.join(map(str, seed_list))})\n\n"
-                          + _safetail_line(args, config) + f"`{command}`\n\n" + comparison)
+                          + _safetail_lines(config) + f"`{command}`\n\n" + comparison)
         write_text_atomic(out / "run.json", json.dumps({
             "package_version": __version__, "command": command, "kind": SEEDS_KIND, "seeds": list(seed_list),
             "seed_folders": {str(seed): f"seed-{seed}" for seed in seed_list}}, indent=1) + "\n")
@@ -208,6 +217,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"written: {out / SEEDS_FILE}")
         return 0
     frame = frames[seed_list[0]]
+    print(glance_markdown(frame))
     print(checks_markdown(frame))
     print(f"written: {out / SWEEP_FILE}")
     return 0

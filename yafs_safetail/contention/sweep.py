@@ -1,14 +1,18 @@
 """The load sweep: every method at every offered load, in the contention world.
 
 For each load: a training world and a test world (independent streams, same users and
-settings); SafeTail learns on the training world at that load (its preset's learner, one
-training round every κ requests, Eq. 5 against τ) and is tested greedily; every other method
-runs on the test world only. All methods of a load see the same arrivals and per-request draws
-(common random numbers). One row per (load, method) goes to ``sweep.csv``.
+settings); each SafeTail learns on the training world at that load and is tested greedily;
+every other method runs on the test world only. By default two SafeTails run side by side
+(:data:`SAFETAIL_LEARNERS`): ``SafeTail``, the paper's learner (§III's target vector, Eq. 5
+against τ, copies sent all at once), and ``SafeTail-CA``, the contention-aware one (the value
+learner that prices each copy by the jobs it joins, tied copies; docs/deviations.md D13). All
+methods of a load see the same arrivals and per-request draws (common random numbers). One row
+per (load, method) goes to ``sweep.csv``.
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import logging
@@ -49,7 +53,15 @@ from yafs_safetail.runs.workers import method_rng
 
 log = logging.getLogger(__name__)
 
-#: Every fixed method of the sweep (SafeTail is added unless left out).
+#: The row of each SafeTail learner (``SweepConfig.learners``): the paper's §III learner is
+#: ``SafeTail``; the value learner, which prices its copies by the load they join, is
+#: ``SafeTail-CA`` (contention-aware, beyond the paper: docs/deviations.md D13).
+SAFETAIL_CA = "SafeTail-CA"
+SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "value": SAFETAIL_CA}
+#: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise:
+#: the paper's as the paper has it; the contention-aware one as it was chosen (D13).
+LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "value": ("tuned", "tied")}
+#: Every fixed method of the sweep (the SafeTails are added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
     "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
 )
@@ -71,9 +83,49 @@ def _method_names(text: str) -> tuple[str, ...]:
 #: The methods a sweep may be given (any baseline name; checked when the policies are built).
 METHOD_NAMES = Check("comma-separated method names",
                      lambda v: isinstance(v, tuple) and all(isinstance(m, str) for m in v), _method_names)
+def _learner_names(text: str) -> tuple[str, ...]:
+    """``--learner``: one or both of OBJECTIVES, comma-separated, in the order given."""
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    if not names or len(set(names)) != len(names) or any(name not in OBJECTIVES for name in names):
+        raise argparse.ArgumentTypeError(f"expected distinct names of {', '.join(OBJECTIVES)}, got {text!r}")
+    return names
+
+
+#: SafeTail's learners: distinct names of OBJECTIVES.
+LEARNERS = Check(f"distinct names of {', '.join(OBJECTIVES)}", lambda v: isinstance(v, tuple) and bool(v) and len(
+    set(v)) == len(v) and all(name in OBJECTIVES for name in v), _learner_names)
 #: Offered loads: distinct utilisations in (0, 10).
 LOADS = Check("distinct loads in (0, 10)", lambda v: isinstance(v, tuple) and len(set(v)) == len(v) and all(
     not isinstance(x, bool) and isinstance(x, float | int) and 0 < x < 10 for x in v), load_list)
+
+
+@dataclass(frozen=True)
+class SafeTailVariant:
+    """One SafeTail of a sweep, resolved from :class:`SweepConfig`.
+
+    Attributes:
+        name: its rows' method name (``SafeTail`` or ``SafeTail-CA``).
+        learner: its training objective (one of OBJECTIVES).
+        preset: its learner preset.
+        dispatch: how its subset is sent (all at once or tied).
+        reward: the reward it is trained with (the value learner's own ``latency-cost``).
+        n_networks: how many networks' predictions it averages.
+        train_requests: its training requests per load.
+    """
+
+    name: str
+    learner: str
+    preset: str
+    dispatch: str
+    reward: str
+    n_networks: int
+    train_requests: int
+
+    def describe(self) -> str:
+        """One line for SWEEP.md: how this SafeTail learns and sends."""
+        networks = f" ({self.n_networks} networks averaged)" if self.n_networks > 1 else ""
+        return (f"preset `{self.preset}`, learner `{self.learner}`{networks}, reward `{self.reward}`, "
+                f"dispatch `{self.dispatch}`")
 
 
 @dataclass(frozen=True)
@@ -81,8 +133,10 @@ class SweepConfig:
     """A load sweep: the contention world of every load (``base``; its ``load``, ``phase`` and
     ``n_requests`` are set per load and phase) and the sweep's own settings, each declared once
     with its help (``runs.config.setting``; ``experiments/load_sweep.py`` derives its options
-    from them). The value learner (``learner="value"``) has its own reward (``"latency-cost"``),
-    so ``reward`` stays ``"paper"`` with it (docs/deviations.md D13)."""
+    from them). ``learners`` names the SafeTails it trains (:attr:`safetails` resolves each one's
+    preset, dispatch and reward). The value learner has its own reward (``"latency-cost"``), so
+    ``reward`` is the paper learner's and stays ``"paper"`` when the value learner runs alone
+    (docs/deviations.md D13)."""
 
     base: ContentionConfig
     loads: tuple[float, ...] = setting((0.1, 0.3, 0.5, 0.7, 0.9),
@@ -92,55 +146,71 @@ class SweepConfig:
                                        check=METHOD_NAMES)
     safetail: bool = setting(True, "fixed methods only", check=BOOLEAN, flag="--no-safetail",
                              action="store_false")
-    preset: str = setting("paper", "SafeTail's preset (default paper)", check=one_of(PRESET_NAMES))
+    preset: str | None = setting(None, "every SafeTail's preset (default: paper for SafeTail, tuned for "
+                                 "SafeTail-CA)", check=one_of(PRESET_NAMES), optional=True)
     steps_scale: float = setting(1.0, "scales SafeTail's training requests and the 20,000 test requests per load",
                                  check=POSITIVE_NUMBER)
-    reward: str = setting("paper", "SafeTail's reward: Eq. 5 (default) or Eq. 5 without case 3's free miss "
-                          "with all servers (docs/contention.md)", check=one_of(("paper", "no-free-miss")))
+    reward: str = setting("paper", "the paper learner's reward: Eq. 5 (default) or Eq. 5 without case 3's free "
+                          "miss with all servers (docs/contention.md); SafeTail-CA has its own",
+                          check=one_of(("paper", "no-free-miss")))
     target: str = setting("eq4", "the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
                           "observed-load (its compute term at the servers' load seen at dispatch; "
                           "docs/deviations.md D12)", check=one_of(TARGETS))
-    learner: str = setting("target-vector", "SafeTail's training objective: target-vector (§III, default) or "
-                           "value (the same network predicting each action's latency, its copies priced at "
-                           "dispatch; docs/deviations.md D13)", check=one_of(OBJECTIVES))
-    dispatch: str = setting("all", "how SafeTail's subset is sent: all at once (default, the paper) or tied "
-                            "(cancelled once one copy starts running, as Tied; with --learner value, "
-                            "at least two copies)", check=one_of(SAFETAIL_DISPATCH), flag="--safetail-dispatch")
+    learners: tuple[str, ...] = setting(
+        tuple(SAFETAIL_LEARNERS), "the SafeTails to train, comma-separated (default both): target-vector (the "
+        "paper's §III learner, row SafeTail) and value (the same network predicting each action's latency, its "
+        "copies priced at dispatch: row SafeTail-CA, docs/deviations.md D13)", check=LEARNERS, flag="--learner")
+    dispatch: str | None = setting(
+        None, "how every SafeTail's subset is sent: all at once (the paper; SafeTail's default) or tied "
+        "(cancelled once one copy starts running, as Tied; with the value learner at least two copies; "
+        "SafeTail-CA's default)", check=one_of(SAFETAIL_DISPATCH), flag="--safetail-dispatch", optional=True)
     test_requests_per_load: int | None = setting(
         None, "test requests per load (default 20,000 × --steps-scale): more decide each p99 more closely",
         check=POSITIVE_INTEGER, flag="--test-requests", optional=True)
     value_networks: int | None = setting(
-        None, "with --learner value: how many networks' predictions SafeTail averages "
+        None, "how many networks' predictions SafeTail-CA (the value learner) averages "
         f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)", check=POSITIVE_INTEGER, optional=True)
 
     def __post_init__(self) -> None:
         n_test = self.test_requests_per_load
         if n_test is not None and (isinstance(n_test, bool) or not isinstance(n_test, int) or n_test < 1):
             raise ContentionError(f"test requests per load must be an integer >= 1, got {n_test!r}")
-        if self.learner not in OBJECTIVES:
-            raise ContentionError(f"learner {self.learner!r}: expected one of {', '.join(OBJECTIVES)}")
-        if self.dispatch not in SAFETAIL_DISPATCH:
+        if not LEARNERS.accepts(self.learners):
+            raise ContentionError(f"learners {self.learners!r}: expected {LEARNERS.what}")
+        if self.dispatch is not None and self.dispatch not in SAFETAIL_DISPATCH:
             raise ContentionError(f"dispatch {self.dispatch!r}: expected one of {', '.join(SAFETAIL_DISPATCH)}")
         n_networks = self.n_value_networks
         if isinstance(n_networks, bool) or not isinstance(n_networks, int) or n_networks < 1:
             raise ContentionError(f"value networks must be an integer >= 1, got {n_networks!r}")
-        if n_networks > 1 and self.learner != "value":
+        if n_networks > 1 and "value" not in self.learners:
             raise ContentionError(f"{n_networks} value networks: only the value learner averages networks")
-        if self.learner == "value" and self.reward != "paper":
+        if self.learners == ("value",) and self.reward != "paper":
             raise ContentionError(f"reward {self.reward!r}: the value learner has its own reward "
                                   "(latency-cost); leave the reward at paper")
 
     @property
     def n_value_networks(self) -> int:
-        """The networks SafeTail's learner averages (``value_networks`` resolved)."""
+        """The networks the value learner averages (``value_networks`` resolved; 1 without it)."""
         if self.value_networks is not None:
             return self.value_networks
-        return DEFAULT_VALUE_NETWORKS if self.learner == "value" else 1
+        return DEFAULT_VALUE_NETWORKS if "value" in self.learners else 1
 
     @property
-    def safetail_reward(self) -> str:
-        """The reward SafeTail is trained with (the value learner's own, or ``reward``)."""
-        return "latency-cost" if self.learner == "value" else self.reward
+    def safetails(self) -> tuple[SafeTailVariant, ...]:
+        """The SafeTails this sweep trains, in ``learners``' order (none with ``safetail`` off)."""
+        if not self.safetail:
+            return ()
+        variants = []
+        for learner in self.learners:
+            preset, dispatch = LEARNER_DEFAULTS[learner]
+            preset = self.preset or preset
+            value = learner == "value"
+            variants.append(SafeTailVariant(
+                name=SAFETAIL_LEARNERS[learner], learner=learner, preset=preset, dispatch=self.dispatch or dispatch,
+                reward="latency-cost" if value else self.reward,
+                n_networks=self.n_value_networks if value else 1,
+                train_requests=scaled_steps(get_preset(preset, self.base.use_case).train_steps, self.steps_scale)))
+        return tuple(variants)
 
     @property
     def test_requests(self) -> int:
@@ -148,28 +218,27 @@ class SweepConfig:
             return self.test_requests_per_load
         return scaled_steps(TEST_REQUESTS, self.steps_scale)
 
-    @property
-    def train_requests(self) -> int:
-        return scaled_steps(get_preset(self.preset, self.base.use_case).train_steps, self.steps_scale)
 
-
-def _safetail_policy(world: ContentionWorld, preset: str, seed: int, train_steps: int,
-                     reward: str = "paper", objective: str = "target-vector",
-                     dispatch: str = "all", n_networks: int = 1) -> SafeTailPolicy:
+def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int) -> SafeTailPolicy:
     # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
 
     use_case = world.use_case
-    config = replace(get_preset(preset, use_case.number, train_steps=train_steps), objective=objective,
-                     n_networks=n_networks)
+    config = replace(get_preset(variant.preset, use_case.number, train_steps=variant.train_requests),
+                     objective=variant.learner, n_networks=variant.n_networks)
+    # Each SafeTail has generators of its own, seeded as a sweep with that learner alone seeds
+    # them (the learner from the seed, the policy's from "SafeTail"), so its rows are the same
+    # whether the other SafeTail runs beside it or not; neither draws from the worlds' streams.
     learner = SafeTailLearner(
         world.n_servers,
         state_dim(world.n_servers, len(use_case.gamma_columns), len(world.scenario.user_location)),
         config, seed, metadata={"use_case": use_case.number, "world": "contention"})
-    return SafeTailPolicy(world.n_servers, method_rng(seed, SAFETAIL), learner=learner,
-                          scales=StateScales.for_use_case(use_case.number), training=True,
-                          reward_name=reward, dispatch=dispatch)
+    policy = SafeTailPolicy(world.n_servers, method_rng(seed, SAFETAIL), learner=learner,
+                            scales=StateScales.for_use_case(use_case.number), training=True,
+                            reward_name=variant.reward, dispatch=variant.dispatch)
+    policy.name = variant.name
+    return policy
 
 
 def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: None) -> pd.DataFrame:
@@ -182,16 +251,16 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
         test_world = ContentionWorld(test_config, inputs, scenario)
         inputs, scenario = test_world.inputs, test_world.scenario
         policies: list[tuple[Policy, int]] = []
-        if config.safetail:
-            train_world = ContentionWorld(replace(test_config, phase="train", n_requests=config.train_requests),
+        for variant in config.safetails:
+            # A training world of its own per SafeTail: the same requests, read afresh.
+            train_world = ContentionWorld(replace(test_config, phase="train", n_requests=variant.train_requests),
                                           inputs, scenario)
-            safetail = _safetail_policy(train_world, config.preset, config.base.seed, config.train_requests,
-                                        config.safetail_reward, config.learner, config.dispatch,
-                                        config.n_value_networks)
+            safetail = _safetail_policy(train_world, variant, config.base.seed)
             trained = run_policy(train_world, safetail, target=config.target)
-            log(f"load {load:g}: SafeTail trained on {config.train_requests} requests in {trained.wall_s:.1f} s")
+            log(f"load {load:g}: {variant.name} trained on {variant.train_requests} requests "
+                f"in {trained.wall_s:.1f} s")
             safetail.training = False
-            policies.append((safetail, config.train_requests))
+            policies.append((safetail, variant.train_requests))
         for name in config.methods:
             policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name)), 0))
         for policy, train_requests in policies:
@@ -199,7 +268,7 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
             row = {"load": load, "offered_load": test_world.offered_load(), **summarise(run),
                    "train_requests": train_requests}
             rows.append(row)
-            log(f"load {load:g}: {policy.name:<10} p50 {row['p50_s']:.3f} s  p99 {row['p99_s']:.3f} s  "
+            log(f"load {load:g}: {policy.name:<11} p50 {row['p50_s']:.3f} s  p99 {row['p99_s']:.3f} s  "
                 f"copies {row['mean_n_selected']:.2f}  fallback {row['fallback_rate']:.3f}  ({run.wall_s:.1f} s)")
     return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
 
@@ -220,7 +289,7 @@ def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
         "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
         "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
         "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
-        "target": config.target, "learner": config.learner, "dispatch": config.dispatch,
+        "target": config.target, "learner": list(config.learners), "dispatch": config.dispatch,
         "test_requests": config.test_requests, "value_networks": config.n_value_networks,
     }
 
@@ -254,10 +323,13 @@ def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
         # Absent from the folders of earlier versions, whose links were read at the start.
         links=settings.get("links", "at-start"), world=settings["world"], topology=Path(settings["topology"]), placement=Path(settings["placement"]),
         user_conditions=settings["user_conditions"])
+    # One learner's name in the folders of earlier versions, which trained one SafeTail.
+    learners = settings["learner"]
     return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
                        safetail=settings["safetail"], preset=settings["preset"],
                        steps_scale=settings["steps_scale"], reward=settings["reward"],
-                       target=settings["target"], learner=settings["learner"],
+                       target=settings["target"],
+                       learners=(learners,) if isinstance(learners, str) else tuple(learners),
                        dispatch=settings["dispatch"],
                        # Absent from the folders of earlier versions, where it followed steps_scale.
                        test_requests_per_load=settings.get("test_requests"),
@@ -286,15 +358,22 @@ def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: b
     return out_dir
 
 
+def safetail_names(frame: pd.DataFrame) -> list[str]:
+    """The SafeTails with rows in ``frame``, the paper's first."""
+    present = set(frame["method"])
+    return [name for name in SAFETAIL_LEARNERS.values() if name in present]
+
+
 def best_fixed_p99(frame: pd.DataFrame, load: float) -> tuple[str, float]:
-    """The fixed method (not SafeTail) with the lowest p99 at ``load``."""
-    rows = frame[(frame["load"] == load) & (frame["method"] != SAFETAIL)]
+    """The fixed method (no SafeTail) with the lowest p99 at ``load``."""
+    rows = frame[(frame["load"] == load) & ~frame["method"].isin(list(SAFETAIL_LEARNERS.values()))]
     best = rows.loc[rows["p99_s"].idxmin()]
     return str(best["method"]), float(best["p99_s"])
 
 
 def sweep_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
-    """The sweep's goals, each as (claim, holds, measured) — computed, never asserted."""
+    """The sweep's goals, each as (claim, holds, measured) — computed, never asserted. The
+    SafeTail goals are checked for each SafeTail in the sweep, named in the claim."""
     loads = sorted(frame["load"].unique())
     checks: list[tuple[str, bool, str]] = []
 
@@ -311,32 +390,39 @@ def sweep_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
             worse_at = [load for load in loads if p99("Oracle", load) > min(p99(m, load) for m in singles)]
             checks.append(("Oracle worse than single dispatch beyond some load", bool(worse_at),
                            f"from load {worse_at[0]:g}" if worse_at else "never"))
-    if SAFETAIL in set(frame["method"]):
+    has_fixed = bool(set(frame["method"]) - set(SAFETAIL_LEARNERS.values()))
+    for name in safetail_names(frame):
         if len(loads) > 1:  # (one load says nothing of how the copies follow the load)
-            copies = [float(frame[(frame["method"] == SAFETAIL) & (frame["load"] == load)]["mean_n_selected"].iloc[0])
+            copies = [float(frame[(frame["method"] == name) & (frame["load"] == load)]["mean_n_selected"].iloc[0])
                       for load in loads]
-            checks.append(("SafeTail: fewer copies as load rises", copies[-1] < copies[0],
+            checks.append((f"{name}: fewer copies as load rises", copies[-1] < copies[0],
                            " -> ".join(f"{c:.2f}" for c in copies)))
         for load in loads:
-            method, best = best_fixed_p99(frame, load)
-            ours = p99(SAFETAIL, load)
-            checks.append((f"SafeTail p99 <= 1.05x best fixed at load {load:g}", ours <= 1.05 * best,
-                           f"{ours:.3f} s vs {method} {best:.3f} s ({ours / best:.2f}x)"))
+            ours = p99(name, load)
+            if has_fixed:
+                method, best = best_fixed_p99(frame, load)
+                checks.append((f"{name} p99 <= 1.05x best fixed at load {load:g}", ours <= 1.05 * best,
+                               f"{ours:.3f} s vs {method} {best:.3f} s ({ours / best:.2f}x)"))
             if load >= 0.7 and "Oracle" in set(frame["method"]):
-                checks.append((f"SafeTail p99 < Oracle's at load {load:g}", ours < p99("Oracle", load),
+                checks.append((f"{name} p99 < Oracle's at load {load:g}", ours < p99("Oracle", load),
                                f"{ours:.3f} s vs {p99('Oracle', load):.3f} s"))
     return checks
 
 
 def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
-    """Several seeds' sweeps (``{seed: sweep.csv's frame}``) side by side: per seed and load,
-    SafeTail's p99 over the best fixed method's and SafeTail's copies per request (when SafeTail
-    ran), then each goal of :func:`sweep_checks` with the seeds where it holds."""
+    """Several seeds' sweeps (``{seed: sweep.csv's frame}``) side by side: per SafeTail, seed and
+    load, its p99 over the best fixed method's and its copies per request (for each SafeTail every
+    seed ran, when a fixed method ran too), then each goal of :func:`sweep_checks` with the seeds
+    where it holds."""
     seeds = sorted(frames)
     lines: list[str] = []
-    if all(SAFETAIL in set(frame["method"]) for frame in frames.values()):
+    names = [name for name in SAFETAIL_LEARNERS.values()
+             if all(name in set(frame["method"]) for frame in frames.values())]
+    if not all(set(frame["method"]) - set(SAFETAIL_LEARNERS.values()) for frame in frames.values()):
+        names = []  # (no fixed method to compare with)
+    for name in names:
         loads = sorted(frames[seeds[0]]["load"].unique())
-        lines += ["Each cell: SafeTail's p99 over the best fixed method's (that method), then SafeTail's "
+        lines += [f"Each cell: {name}'s p99 over the best fixed method's (that method), then {name}'s "
                   "copies per request.", "",
                   "| seed | " + " | ".join(f"{load:g}" for load in loads) + " |",
                   "|---|" + "---|" * len(loads)]
@@ -346,7 +432,7 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
             cells = []
             for load in loads:
                 method, best = best_fixed_p99(frame, load)
-                ours = frame[(frame["method"] == SAFETAIL) & (frame["load"] == load)].iloc[0]
+                ours = frame[(frame["method"] == name) & (frame["load"] == load)].iloc[0]
                 ratios[load].append(float(ours["p99_s"]) / best)
                 cells.append(f"{ratios[load][-1]:.2f} ({method}), {ours['mean_n_selected']:.2f}")
             lines.append(f"| {seed} | " + " | ".join(cells) + " |")
@@ -365,21 +451,63 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: How the figures draw each SafeTail (every fixed method: a thin grey-toned line).
+SAFETAIL_STYLE: dict[str, dict[str, Any]] = {
+    SAFETAIL: {"color": "tab:red", "label": "SafeTail (paper)"},
+    SAFETAIL_CA: {"color": "tab:blue", "label": "SafeTail-CA (contention-aware)"},
+}
+
+
+def _plot_methods(axis: Any, frame: pd.DataFrame, column: str) -> None:
+    """One line per method of ``column`` against load: the SafeTails thick and coloured, Oracle
+    dashed black, the other fixed methods thin in muted colours."""
+    fixed = [m for m in dict.fromkeys(frame["method"]) if m not in SAFETAIL_STYLE]
+    muted = ["tab:gray", "tab:olive", "tab:cyan", "tab:brown", "tab:pink", "tab:purple", "tab:orange",
+             "tab:green", "darkkhaki", "slategray"]
+    for index, method in enumerate(m for m in fixed if m != "Oracle"):
+        rows = frame[frame["method"] == method]
+        axis.plot(rows["load"], rows[column], marker=".", linewidth=1.0, alpha=0.75,
+                  color=muted[index % len(muted)], label=method)
+    if "Oracle" in fixed:
+        rows = frame[frame["method"] == "Oracle"]
+        axis.plot(rows["load"], rows[column], marker="x", linestyle="--", linewidth=1.4, color="black",
+                  label="Oracle (all servers)")
+    for method, style in SAFETAIL_STYLE.items():
+        rows = frame[frame["method"] == method]
+        if len(rows):
+            axis.plot(rows["load"], rows[column], marker="o", linewidth=3.0, zorder=5, **style)
+
+
 def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
-    """sweep_latency.png (p50 and p99 against load, per method) and sweep_copies.png."""
+    """sweep.png (p99 on a log scale and copies per request against load, every method, both
+    SafeTails highlighted) and sweep_latency.png (p50 and p99 against load)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     written = []
-    methods = list(dict.fromkeys(frame["method"]))
+    fig, (latency, copies) = plt.subplots(1, 2, figsize=(12, 4.6))
+    _plot_methods(latency, frame, "p99_s")
+    latency.set_yscale("log")
+    latency.set_ylabel("p99 latency (s, log scale)")
+    latency.set_title("p99 latency against load (lower is better)")
+    _plot_methods(copies, frame, "mean_n_selected")
+    copies.set_ylabel("copies per request")
+    copies.set_title("copies sent per request against load")
+    for axis in (latency, copies):
+        axis.set_xlabel("offered load (utilisation of the slots)")
+        axis.grid(True, which="both", alpha=0.3)
+    handles, labels = latency.get_legend_handles_labels()
+    # The SafeTails (drawn last, on top) head the legend.
+    fig.legend(handles[::-1], labels[::-1], loc="center right", fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 0.8, 1))
+    written.append(out_dir / "sweep.png")
+    fig.savefig(written[-1], dpi=120, metadata={"Software": None})
+    plt.close(fig)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharex=True)
     for axis, column, title in ((axes[0], "p50_s", "median"), (axes[1], "p99_s", "p99")):
-        for method in methods:
-            rows = frame[frame["method"] == method]
-            axis.plot(rows["load"], rows[column], marker="o", label=method,
-                      linewidth=2.5 if method == SAFETAIL else 1.2)
+        _plot_methods(axis, frame, column)
         axis.set_yscale("log")
         axis.set_xlabel("offered load")
         axis.set_ylabel(f"{title} latency (s)")
@@ -390,21 +518,31 @@ def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
     written.append(out_dir / "sweep_latency.png")
     fig.savefig(written[-1], dpi=120, metadata={"Software": None})
     plt.close(fig)
-    fig, axis = plt.subplots(figsize=(5.5, 4.2))
-    for method in methods:
-        rows = frame[frame["method"] == method]
-        axis.plot(rows["load"], rows["mean_n_selected"], marker="o", label=method,
-                  linewidth=2.5 if method == SAFETAIL else 1.2)
-    axis.set_xlabel("offered load")
-    axis.set_ylabel("copies per request")
-    axis.set_title("copies per request against load")
-    axis.grid(True, alpha=0.3)
-    axis.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    written.append(out_dir / "sweep_copies.png")
-    fig.savefig(written[-1], dpi=120, metadata={"Software": None})
-    plt.close(fig)
     return written
+
+
+def glance_markdown(frame: pd.DataFrame) -> str:
+    """Every method's p99 and copies per request, one row per load (the SafeTails first, the best
+    fixed method's p99 in bold): what sweep.png draws, for the console and SWEEP.md."""
+    names = safetail_names(frame)
+    methods = names + [m for m in dict.fromkeys(frame["method"]) if m not in names]
+    header = "| load | " + " | ".join(methods) + " |"
+    rule = "|---|" + "---|" * len(methods)
+    has_fixed = len(methods) > len(names)
+
+    def seconds(value: float) -> str:
+        return f"{value:,.0f}" if value >= 100 else f"{value:.2f}"
+
+    p99_lines = ["p99 (s; the best fixed method's in bold):", "", header, rule]
+    copies_lines = ["Copies per request:", "", header, rule]
+    for load in sorted(frame["load"].unique()):
+        at = frame[frame["load"] == load].set_index("method")
+        best = best_fixed_p99(frame, load)[0] if has_fixed else None
+        p99_lines.append(f"| {load:g} | " + " | ".join(
+            f"**{seconds(at.at[m, 'p99_s'])}**" if m == best else seconds(at.at[m, "p99_s"]) for m in methods) + " |")
+        copies_lines.append(f"| {load:g} | " + " | ".join(f"{at.at[m, 'mean_n_selected']:.2f}" for m in methods)
+                            + " |")
+    return "\n".join(p99_lines) + "\n\n" + "\n".join(copies_lines) + "\n"
 
 
 def checks_markdown(frame: pd.DataFrame) -> str:
