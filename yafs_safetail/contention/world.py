@@ -31,90 +31,42 @@ Units: seconds, bytes, bits per second; rates in requests per second.
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from yafs_safetail.contention.config import (
+    DEFAULT_BLOCK_REQUESTS,
+    LINK_MODELS,
+    ContentionConfig,
+    ContentionError,
+    check_contention_config,
+    read_arrivals,
+    user_conditions,
+)
 from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
 from yafs_safetail.edge.latency import target_latency_s
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_sequence, propagation
-from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, EdgeScenario
+from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, build_world, phase_streams
 
-#: Requests drawn per block (memory stays bounded however long the run).
-DEFAULT_BLOCK_REQUESTS = 20_000
+__all__ = [
+    "BACKGROUND_PERIOD_S", "ContentionWorld", "compute_speed_table",
+    # From contention.config (importable from here, as before the split).
+    "DEFAULT_BLOCK_REQUESTS", "LINK_MODELS", "ContentionConfig", "ContentionError",
+    "check_contention_config", "read_arrivals", "user_conditions",
+]
+
 #: How often the background tenants change: one load-trace row (a minute).
 BACKGROUND_PERIOD_S = 60.0
-#: How transfers share a server's links (see the module's docstring).
-LINK_MODELS: tuple[str, ...] = ("shared", "at-start")
-
-
-class ContentionError(ValueError):
-    """A contention-world setting or input that cannot make a run (one line naming it)."""
-
-
-@dataclass(frozen=True)
-class ContentionConfig:
-    """One contention-world run of one method (everything but the method).
-
-    Attributes:
-        use_case: 1, 2 or 3.
-        n_requests: requests simulated (ignored with ``arrivals_csv``: its rows are the requests).
-        seed: the run's seed.
-        phase: names the random streams (``"train"`` and ``"test"`` are independent worlds).
-        users: U.
-        load: offered utilisation of the servers' slots by the users' requests: arrival rate ×
-            mean single-copy service time ÷ total slots (see :meth:`ContentionWorld.rate_for_load`).
-        rate_per_user_hz: each user's Poisson rate; when given, it sets the rate and ``load`` is
-            not used.
-        arrivals_csv: a CSV of ``time_s,user`` rows (user in 0..U-1) instead of Poisson streams.
-        queue: FIFO waiting queue at a full server instead of refusal.
-        cancel: cancel the other copies when the first reply arrives.
-        background: the load trace's background tenants (False: the servers serve only the users).
-        links: ``"shared"`` (processor sharing over each transfer) or ``"at-start"`` (the level
-            when the transfer starts); :data:`LINK_MODELS`.
-        world: the world's readings and calibrated parameters (``"calibrated-v1"``, the first
-            calibration, in which docs/contention.md's figures were measured; ``"calibrated"``,
-            the paper presets' learner-free fit; or ``"landed"``).
-        topology: topology JSON (per-server ``IPT`` and ``capacity`` are read here).
-        placement: placement JSON.
-        traces_dir: the traces folder (None: the repository's).
-        block_requests: requests drawn per block.
-        user_conditions: each user's distance condition (1..5) per server: ``"topology"`` (the
-            topology's link conditions for every user), ``"generated"`` (the topology's ±1 per
-            user and server, drawn once from the seed, the same in every phase) or a JSON file
-            ``{"users": [{"conditions": [c_0, ..., c_{n-1}]}, ...]}`` with one entry per user.
-    """
-
-    use_case: int = 1
-    n_requests: int = 10_000
-    seed: int = 0
-    phase: str = "test"
-    users: int = 1
-    load: float | None = 0.3
-    rate_per_user_hz: float | None = None
-    arrivals_csv: Path | None = None
-    queue: bool = False
-    cancel: bool = True
-    background: bool = True
-    links: str = "shared"
-    world: str = "calibrated-v1"
-    topology: Path = DEFAULT_TOPOLOGY
-    placement: Path = DEFAULT_PLACEMENT
-    traces_dir: Path | None = None
-    block_requests: int = DEFAULT_BLOCK_REQUESTS
-    user_conditions: str | Path = "topology"
 
 
 def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, max_jobs: int) -> tuple[float, ...]:
@@ -131,42 +83,13 @@ def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, 
     return tuple(speeds)
 
 
-def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:
-    """``time_s,user`` rows, checked (one-line errors), sorted by time (stable)."""
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except OSError as exc:
-        raise ContentionError(f"{path}: file: cannot read arrivals ({exc.strerror})") from None
-    if not rows or [c.strip() for c in rows[0]] != ["time_s", "user"]:
-        raise ContentionError(f"{path}: header: expected the columns time_s,user")
-    times, who = [], []
-    for number, row in enumerate(rows[1:], start=2):
-        if len(row) != 2:
-            raise ContentionError(f"{path}: line {number}: expected 2 values, got {len(row)}")
-        try:
-            time_s, user = float(row[0]), int(row[1])
-        except ValueError:
-            raise ContentionError(f"{path}: line {number}: not a number and an integer: {row!r}") from None
-        if not math.isfinite(time_s) or time_s < 0:
-            raise ContentionError(f"{path}: line {number}: time_s must be a finite non-negative number")
-        if not 0 <= user < users:
-            raise ContentionError(f"{path}: line {number}: user {user} is not in 0..{users - 1} (--users {users})")
-        times.append(time_s)
-        who.append(user)
-    if not times:
-        raise ContentionError(f"{path}: rows: no arrivals")
-    order = np.argsort(np.asarray(times), kind="stable")
-    return np.asarray(times)[order], np.asarray(who, dtype=np.int64)[order]
-
-
 class ContentionWorld:
     """The inputs of one contention run, drawn from ``(seed, phase)``; shared by every method
     run on it (common random numbers: the same arrivals and per-request draws)."""
 
     def __init__(self, config: ContentionConfig, inputs: TraceInputs | None = None,
                  scenario: EdgeScenario | None = None) -> None:
-        _check(config)
+        check_contention_config(config)
         self.config = config
         self.use_case: UseCase = get_use_case(config.use_case)
         if inputs is None:
@@ -383,54 +306,3 @@ class ContentionWorld:
         traced_s = self.inputs.median_compute_by_k_s
         speeds = compute_speed_table(traced_s, 1.0, max(slots, len(traced_s)))
         return slots, tuple(float(traced_s[0]) / speed for speed in speeds)
-
-
-def user_conditions(config: ContentionConfig, scenario: EdgeScenario, known: tuple[int, ...]) -> np.ndarray:
-    """Each user's distance condition per server, shape (U, n) (see ``ContentionConfig``)."""
-    topology = np.asarray(scenario.server_conditions, dtype=np.int64)
-    choice = config.user_conditions
-    if choice == "topology":
-        return np.tile(topology, (config.users, 1))
-    if choice == "generated":
-        rng = np.random.default_rng(phase_seed_sequence(config.seed, "users"))
-        shifted = topology[None, :] + rng.integers(-1, 2, size=(config.users, topology.size))
-        return np.clip(shifted, min(known), max(known))
-    path = Path(choice)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ContentionError(f"{path}: file: cannot read user conditions ({exc.strerror})") from None
-    except ValueError as exc:
-        raise ContentionError(f"{path}: file: invalid JSON ({exc})") from None
-    users = data.get("users") if isinstance(data, dict) else None
-    if not isinstance(users, list) or len(users) != config.users:
-        raise ContentionError(f"{path}: users: expected a list of {config.users} users (--users {config.users})")
-    rows = []
-    for index, user in enumerate(users):
-        conditions = user.get("conditions") if isinstance(user, dict) else None
-        if (not isinstance(conditions, list) or len(conditions) != topology.size
-                or not all(isinstance(c, int) and not isinstance(c, bool) and c in known for c in conditions)):
-            raise ContentionError(f"{path}: users[{index}].conditions: expected {topology.size} conditions "
-                                  f"from {list(known)}, got {conditions!r}")
-        rows.append(conditions)
-    return np.asarray(rows, dtype=np.int64)
-
-
-def _check(config: ContentionConfig) -> None:
-    def positive_int(name: str, value: object) -> None:
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ContentionError(f"{name}: expected a positive integer, got {value!r}")
-
-    positive_int("--users", config.users)
-    positive_int("--requests", config.n_requests)
-    positive_int("block_requests", config.block_requests)
-    if config.links not in LINK_MODELS:
-        raise ContentionError(f"--links: expected one of {', '.join(LINK_MODELS)}, got {config.links!r}")
-    if config.arrivals_csv is None:
-        if config.load is None and config.rate_per_user_hz is None:
-            raise ContentionError("--load / --rate-per-user: give one of them")
-        by_rate = config.rate_per_user_hz is not None
-        value = config.rate_per_user_hz if by_rate else config.load
-        if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
-            name = "--rate-per-user" if by_rate else "--load"
-            raise ContentionError(f"{name}: expected a positive number, got {value!r}")

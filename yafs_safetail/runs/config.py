@@ -13,7 +13,8 @@ glance:
 
 :class:`ExperimentConfig` is the four together (it inherits their fields, so ``config.seed``
 and ``ExperimentConfig(seed=3)`` read as before). Each field carries a :class:`Setting` in its
-metadata, and everything else is derived from it: the command-line options of the scripts
+metadata (declared with :func:`setting`; the :class:`Setting` and :class:`Check` machinery lives
+in ``runs.settings``), and everything else is derived from it: the command-line options of the scripts
 (:func:`add_options`), the configuration from parsed options (:func:`config_from_args`), the
 checks at run start (:func:`check_config`), the campaign grid's settable fields and the run id
 (``runs.grid``: :data:`RESULT_FIELDS`), the learner's hyperparameters (:func:`learner_config`)
@@ -26,9 +27,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,19 +36,34 @@ from typing import TYPE_CHECKING, Any
 # module before NumPy, pandas, simpy or TensorFlow load (``--help`` answers at once). The
 # defaults and choices come from yafs_safetail.defaults; what runs a configuration is imported
 # where it is used.
-from yafs_safetail import cli
 from yafs_safetail.defaults import (
     DEFAULT_FIGURE_FORMATS,
     DEFAULT_PLACEMENT,
     DEFAULT_STEP_INTERVAL_S,
     DEFAULT_TOPOLOGY,
     DEFAULT_TRACE_DIR,
-    FIGURE_FORMATS,
     PRESET_NAMES,
     TARGET_COMPUTES,
-    figure_formats,
 )
 from yafs_safetail.edge.published import USE_CASES
+
+# How a field is declared (Check, Setting, setting()): runs.settings; importable from here too,
+# as the commands and the contention sweep do.
+from yafs_safetail.runs.settings import (
+    BOOLEAN,
+    FORMATS,
+    LEVELS,
+    NON_NEGATIVE_INTEGER,
+    NON_NEGATIVE_NUMBER,
+    POSITIVE_INTEGER,
+    POSITIVE_NUMBER,
+    Check,
+    Setting,
+    has_setting,
+    one_of,
+    setting,
+    setting_of,
+)
 
 if TYPE_CHECKING:
     from yafs_safetail.edge.calibration import WorldSettings
@@ -56,124 +71,18 @@ if TYPE_CHECKING:
     from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 
+__all__ = [
+    "ExperimentError", "Task", "WorldSetup", "WORLD_OVERRIDES", "LearnerOverrides", "Output",
+    "ExperimentConfig", "GROUPS", "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS",
+    "add_options", "config_from_args", "check_config", "learner_overrides", "learner_config",
+    # From runs.settings.
+    "Check", "Setting", "setting", "setting_of", "one_of", "BOOLEAN", "FORMATS", "LEVELS",
+    "NON_NEGATIVE_INTEGER", "NON_NEGATIVE_NUMBER", "POSITIVE_INTEGER", "POSITIVE_NUMBER",
+]
+
+
 class ExperimentError(ValueError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
-
-
-# ----------------------------------------------------------------------------- checks
-
-
-@dataclass(frozen=True)
-class Check:
-    """What values a setting accepts, for the command line and for values set in Python.
-
-    Attributes:
-        what: the accepted values in words (``"a positive number"``), for error messages.
-        accepts: whether a Python value is acceptable (``None`` is handled by the caller).
-        parse: the argparse ``type``: text to value, raising ``argparse.ArgumentTypeError``.
-        choices: the accepted values when they are a short list (argparse shows them).
-    """
-
-    what: str
-    accepts: Callable[[Any], bool]
-    parse: Callable[[str], Any] | None = None
-    choices: tuple[Any, ...] | None = None
-
-
-def _is_number(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, float | int) and math.isfinite(value)
-
-
-def _is_integer(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, int)
-
-
-POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, cli.positive_float)
-NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: _is_number(v) and v >= 0,
-                            cli.non_negative_float)
-POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, cli.positive_int)
-NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: _is_integer(v) and v >= 0,
-                             cli.non_negative_int)
-BOOLEAN = Check("true or false", lambda v: isinstance(v, bool))
-
-
-def one_of(choices: Sequence[Any], parse: Callable[[str], Any] | None = None) -> Check:
-    """A check for one of a few values (argparse lists them; ``parse`` turns text into one)."""
-    listed = ", ".join(str(c) for c in choices)
-    return Check(f"one of {listed}", lambda v: not isinstance(v, bool) and v in choices, parse, tuple(choices))
-
-
-def _redundancy_levels(text: str) -> tuple[int, ...]:
-    try:
-        levels = tuple(int(part) for part in text.split(",") if part.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
-    if not levels:
-        raise argparse.ArgumentTypeError("expected at least one level")
-    return levels
-
-
-#: Redundancy levels: their range depends on the topology, checked when it is read.
-FORMATS = Check(f"a list of {', '.join(FIGURE_FORMATS)}",
-                lambda v: isinstance(v, tuple) and bool(v) and all(x in FIGURE_FORMATS for x in v),
-                figure_formats)
-LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_integer(x) for x in v),
-               _redundancy_levels)
-
-
-# ----------------------------------------------------------------------------- settings
-
-
-@dataclass(frozen=True)
-class Setting:
-    """What the project knows about one field of a configuration.
-
-    Attributes:
-        help: what it means, as the command line's help shows it.
-        changes_results: whether two runs differing in it may write different results files
-            (part of the run id). Where and how a run goes (its folder, processes, progress,
-            resuming) does not.
-        check: the values it accepts (None: any value of its type).
-        flag: its command-line option; None: ``--`` and the name with dashes. ``""``: none
-            (set from Python or a grid only).
-        optional: None is a valid value (the preset's or the world's own).
-        action: an argparse action instead of a typed value (``"store_true"``, ``"store_false"``
-            for a ``--no-...`` flag, ``"append"``).
-        metavar: the option's value placeholder in the help.
-        from_cli: turns the parsed value into the field's value (e.g. specs into methods).
-        in_grid: a campaign grid may set it although it does not change the results (which
-            copies of the figures a run draws); it stays out of the run id.
-    """
-
-    help: str
-    changes_results: bool = True
-    check: Check | None = None
-    flag: str | None = None
-    optional: bool = False
-    action: str | None = None
-    metavar: str | None = None
-    from_cli: Callable[[Any], Any] | None = None
-    in_grid: bool = False
-
-    def option(self, name: str) -> str:
-        """The command-line option of the field ``name`` (``--steps-scale``), or ``""``."""
-        return f"--{name.replace('_', '-')}" if self.flag is None else self.flag
-
-
-_SETTING = "yafs_safetail.setting"
-
-
-def setting(default: Any, help: str, **kwargs: Any) -> Any:
-    """A dataclass field with its :class:`Setting` (``kwargs`` are the Setting's)."""
-    return field(default=default, metadata={_SETTING: Setting(help=help, **kwargs)})
-
-
-def setting_of(item: dataclasses.Field[Any]) -> Setting:
-    """The :class:`Setting` of a configuration field."""
-    found = item.metadata.get(_SETTING)
-    if not isinstance(found, Setting):
-        raise TypeError(f"{item.name}: a configuration field must be declared with setting()")
-    return found
 
 
 # ----------------------------------------------------------------------------- the groups
@@ -316,7 +225,7 @@ def _fields_of(config_class: type, only: Iterable[str] | None,
     if only is None:
         left_out = set(exclude)
         return [f for f in every.values()
-                if f.name not in left_out and _SETTING in f.metadata and setting_of(f).option(f.name)]
+                if f.name not in left_out and has_setting(f) and setting_of(f).option(f.name)]
     unknown = [name for name in only if name not in every]
     if unknown:
         raise TypeError(f"{config_class.__name__} has no field {unknown[0]!r}")

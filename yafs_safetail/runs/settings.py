@@ -1,0 +1,142 @@
+"""How a configuration field is declared: :func:`setting` gives a dataclass field its
+:class:`Setting` (help text, :class:`Check`, whether it changes the results, its option).
+
+The declarations themselves, and what is derived from them (the scripts' options, the checks at
+run start, the run id's fields), are ``runs.config``'s; the contention sweep declares its
+fields with the same :func:`setting`. Every name here is also importable from ``runs.config``.
+
+Only light modules here, as in ``runs.config``: the scripts build their parsers from these
+before NumPy, pandas, simpy or TensorFlow load (``tests/test_first_answer.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from yafs_safetail import cli
+from yafs_safetail.defaults import FIGURE_FORMATS, figure_formats
+
+# ----------------------------------------------------------------------------- checks
+
+
+@dataclass(frozen=True)
+class Check:
+    """What values a setting accepts, for the command line and for values set in Python.
+
+    Attributes:
+        what: the accepted values in words (``"a positive number"``), for error messages.
+        accepts: whether a Python value is acceptable (``None`` is handled by the caller).
+        parse: the argparse ``type``: text to value, raising ``argparse.ArgumentTypeError``.
+        choices: the accepted values when they are a short list (argparse shows them).
+    """
+
+    what: str
+    accepts: Callable[[Any], bool]
+    parse: Callable[[str], Any] | None = None
+    choices: tuple[Any, ...] | None = None
+
+
+def _is_number(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, float | int) and math.isfinite(value)
+
+
+def _is_integer(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, int)
+
+
+POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, cli.positive_float)
+NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: _is_number(v) and v >= 0,
+                            cli.non_negative_float)
+POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, cli.positive_int)
+NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: _is_integer(v) and v >= 0,
+                             cli.non_negative_int)
+BOOLEAN = Check("true or false", lambda v: isinstance(v, bool))
+
+
+def one_of(choices: Sequence[Any], parse: Callable[[str], Any] | None = None) -> Check:
+    """A check for one of a few values (argparse lists them; ``parse`` turns text into one)."""
+    listed = ", ".join(str(c) for c in choices)
+    return Check(f"one of {listed}", lambda v: not isinstance(v, bool) and v in choices, parse, tuple(choices))
+
+
+def _redundancy_levels(text: str) -> tuple[int, ...]:
+    try:
+        levels = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not levels:
+        raise argparse.ArgumentTypeError("expected at least one level")
+    return levels
+
+
+#: Redundancy levels: their range depends on the topology, checked when it is read.
+FORMATS = Check(f"a list of {', '.join(FIGURE_FORMATS)}",
+                lambda v: isinstance(v, tuple) and bool(v) and all(x in FIGURE_FORMATS for x in v),
+                figure_formats)
+LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_integer(x) for x in v),
+               _redundancy_levels)
+
+
+# ----------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True)
+class Setting:
+    """What the project knows about one field of a configuration.
+
+    Attributes:
+        help: what it means, as the command line's help shows it.
+        changes_results: whether two runs differing in it may write different results files
+            (part of the run id). Where and how a run goes (its folder, processes, progress,
+            resuming) does not.
+        check: the values it accepts (None: any value of its type).
+        flag: its command-line option; None: ``--`` and the name with dashes. ``""``: none
+            (set from Python or a grid only).
+        optional: None is a valid value (the preset's or the world's own).
+        action: an argparse action instead of a typed value (``"store_true"``, ``"store_false"``
+            for a ``--no-...`` flag, ``"append"``).
+        metavar: the option's value placeholder in the help.
+        from_cli: turns the parsed value into the field's value (e.g. specs into methods).
+        in_grid: a campaign grid may set it although it does not change the results (which
+            copies of the figures a run draws); it stays out of the run id.
+    """
+
+    help: str
+    changes_results: bool = True
+    check: Check | None = None
+    flag: str | None = None
+    optional: bool = False
+    action: str | None = None
+    metavar: str | None = None
+    from_cli: Callable[[Any], Any] | None = None
+    in_grid: bool = False
+
+    def option(self, name: str) -> str:
+        """The command-line option of the field ``name`` (``--steps-scale``), or ``""``."""
+        return f"--{name.replace('_', '-')}" if self.flag is None else self.flag
+
+
+_SETTING = "yafs_safetail.setting"
+
+
+def setting(default: Any, help: str, **kwargs: Any) -> Any:
+    """A dataclass field with its :class:`Setting` (``kwargs`` are the Setting's)."""
+    return field(default=default, metadata={_SETTING: Setting(help=help, **kwargs)})
+
+
+def setting_of(item: dataclasses.Field[Any]) -> Setting:
+    """The :class:`Setting` of a configuration field."""
+    found = item.metadata.get(_SETTING)
+    if not isinstance(found, Setting):
+        raise TypeError(f"{item.name}: a configuration field must be declared with setting()")
+    return found
+
+
+def has_setting(item: dataclasses.Field[Any]) -> bool:
+    """Whether a configuration field was declared with :func:`setting`."""
+    return isinstance(item.metadata.get(_SETTING), Setting)
