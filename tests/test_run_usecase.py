@@ -19,8 +19,13 @@ import pytest
 
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import world_settings
-from yafs_safetail.figures import DEFAULT_FIGURE_FORMATS, FIGURE_STEMS, FIGURES_DIR, build_figures
-from yafs_safetail.figures import load_inputs as load_figure_inputs
+from yafs_safetail.figures import (
+    DEFAULT_FIGURE_FORMATS,
+    FIGURE_STEMS,
+    FIGURES_DIR,
+    build_figures,
+    read_figure_inputs,
+)
 from yafs_safetail.runs.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, baseline_names
 
 SCRIPT = REPOSITORY / "experiments" / "run_usecase.py"
@@ -149,7 +154,7 @@ def test_users_methods_join_the_comparison_on_the_same_requests(uc1_run, tmp_pat
     assert list(summary["method"])[-2:] == sorted(mine)
     assert json.loads((out / "run.json").read_text())["methods"][-2:] == sorted(mine)
     assert all(f"| {name} |" in (out / "summary.md").read_text() for name in mine)
-    frame, run = load_figure_inputs(out)
+    frame, run = read_figure_inputs(out)
     panel_a = build_figures(frame, run)["a"]
     legend = panel_a.axes[0].get_legend_handles_labels()[1]
     assert set(mine) <= set(legend)

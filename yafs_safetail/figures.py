@@ -202,7 +202,7 @@ def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, panel
     return figure
 
 
-def load_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
+def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
     """Read and check what the figures need from a results folder.
 
     Raises:
@@ -226,7 +226,7 @@ def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]
     """Build panels (a)-(g) in memory, without writing anything.
 
     Args:
-        requests: a checked requests table (see :func:`load_inputs`).
+        requests: a checked requests table (see :func:`read_figure_inputs`).
         run: the run's metadata.
 
     Returns:
@@ -270,7 +270,7 @@ def draw_figures(
     """
     folder = Path(directory)
     if requests is None or run is None:
-        loaded_requests, loaded_run = load_inputs(folder)
+        loaded_requests, loaded_run = read_figure_inputs(folder)
         requests = loaded_requests if requests is None else requests
         run = loaded_run if run is None else run
     built = build_figures(requests, run)

@@ -6,9 +6,12 @@
 * ``paper``: the paper's published ratios and claims, ours beside them;
 * ``report``: markdown reports and the writers of a run's folder;
 * ``fidelity``: the scorecard of every published number against ours;
+* ``world_bounds``, ``feasibility``: what any policy could reach in a run's world, and over a
+  preset's runs;
 * ``latex``: the report's tables as LaTeX files (``DataFrame.to_latex``).
 
-The public names of the first four are re-exported here (``results.summarize``, ...).
+The names the figures, the runs and the tests read as ``results.<name>`` are re-exported here
+(``results.summarize``, ...); anything else is imported from its module.
 """
 
 
@@ -17,31 +20,23 @@ from yafs_safetail.methods.registry import (
     ORACLE,
     SAFETAIL,
     baselines_of,
-    method_sort_key,
     parse_method,
     sort_methods,
 )
-from yafs_safetail.record import PHASES, REQUESTS_COLUMNS, REQUESTS_SCHEMA
+from yafs_safetail.record import PHASES, REQUESTS_COLUMNS
 from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.files import (
-    FLOAT_FORMAT,
     LEARNING_RATE_OVERRIDE_KEY,
-    MIN_REQUESTS_BEYOND_PERCENTILE,
-    NA_REP,
-    OPTIONAL_SUMMARY_COLUMNS,
     PERCENTILES,
     PLACEMENT_KEY,
     REQUESTS_FILE,
     RUN_FILE,
     RUN_JSON_KEYS,
     SUMMARY_COLUMNS,
-    SUMMARY_CSV_FILE,
-    SUMMARY_MD_FILE,
     WORLD_OVERRIDES_KEY,
     ResultsFileError,
     RunMetadata,
     file_mode,
-    folder_mode,
     read_requests_csv,
     read_run_json,
     read_summary_csv,
@@ -51,21 +46,10 @@ from yafs_safetail.results.files import (
     write_text_atomic,
 )
 from yafs_safetail.results.paper import (
-    AGGREGATE_SPEEDUP_COLUMNS,
-    AGREE_TOLERANCE,
-    CALIBRATION_RATIOS,
-    CALIBRATION_REFERENCES,
     PAPER_CLAIMS,
     PAPER_RATIOS,
     PERCENTILE_NAMES,
-    SPEEDUP_COLUMNS,
-    UNITY_TOLERANCE,
-    PaperClaim,
-    PaperRatio,
     aggregate_speedups,
-    in_calibration_subset,
-    paper_speedup,
-    paper_statement,
     setting_differences,
     speedup_table,
 )
@@ -73,16 +57,12 @@ from yafs_safetail.results.report import (
     aggregate_markdown,
     aggregate_table,
     comparison_markdown,
-    comparison_table,
     frame_markdown,
     summary_markdown,
     write_results,
     write_summary,
 )
 from yafs_safetail.results.stats import (
-    AGGREGATE_METRICS,
-    BETA_COLUMNS,
-    BOOTSTRAP_RESAMPLES,
     abs_reward_by_episode,
     access_rate_by_episode,
     aggregate_summaries,
@@ -96,19 +76,8 @@ from yafs_safetail.results.stats import (
 )
 
 __all__ = [
-    "AGGREGATE_METRICS",
-    "AGGREGATE_SPEEDUP_COLUMNS",
-    "AGREE_TOLERANCE",
     "BASELINE_FAMILIES",
-    "BETA_COLUMNS",
-    "BOOTSTRAP_RESAMPLES",
-    "CALIBRATION_RATIOS",
-    "CALIBRATION_REFERENCES",
-    "FLOAT_FORMAT",
     "LEARNING_RATE_OVERRIDE_KEY",
-    "MIN_REQUESTS_BEYOND_PERCENTILE",
-    "NA_REP",
-    "OPTIONAL_SUMMARY_COLUMNS",
     "ORACLE",
     "PAPER_CLAIMS",
     "PAPER_RATIOS",
@@ -116,21 +85,14 @@ __all__ = [
     "PERCENTILE_NAMES",
     "PHASES",
     "PLACEMENT_KEY",
-    "PaperClaim",
-    "PaperRatio",
     "REQUESTS_COLUMNS",
     "REQUESTS_FILE",
-    "REQUESTS_SCHEMA",
     "RUN_FILE",
     "RUN_JSON_KEYS",
     "ResultsFileError",
     "RunMetadata",
     "SAFETAIL",
-    "SPEEDUP_COLUMNS",
     "SUMMARY_COLUMNS",
-    "SUMMARY_CSV_FILE",
-    "SUMMARY_MD_FILE",
-    "UNITY_TOLERANCE",
     "WORLD_OVERRIDES_KEY",
     "abs_reward_by_episode",
     "access_rate_by_episode",
@@ -143,16 +105,10 @@ __all__ = [
     "bootstrap_interval",
     "check_claims",
     "comparison_markdown",
-    "comparison_table",
     "file_mode",
-    "folder_mode",
     "frame_markdown",
     "geometric_interval",
-    "in_calibration_subset",
     "latency_deviation_by_episode",
-    "method_sort_key",
-    "paper_speedup",
-    "paper_statement",
     "parse_method",
     "read_requests_csv",
     "read_run_json",
