@@ -86,6 +86,7 @@ def check_statistics(trace_dir: Path) -> list[Check]:
     Returns:
         One Check per statistic, in README order.
     """
+    # Long on purpose: one flat list of checks in the README's order, each beside its figure.
     tol = TOLERANCES
     checks: list[Check] = []
 

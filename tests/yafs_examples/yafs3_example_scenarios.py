@@ -12,6 +12,7 @@ from yafs_examples.yafs3_common import _unit_graph
 
 
 def vrgame(lib: SimpleNamespace, results: str) -> None:
+    # Long on purpose: it reads as the YAFS3 example script it mirrors, top to bottom.
     application = lib.application
     app_cls, message = application.Application, application.Message
     app = app_cls(name="EGG_GAME")
@@ -105,6 +106,7 @@ def vrgame(lib: SimpleNamespace, results: str) -> None:
 
 
 def failures(lib: SimpleNamespace, results: str) -> None:
+    # Long on purpose: it reads as the YAFS3 example script it mirrors, top to bottom.
     application = lib.application
     app = application.Application(name="app1")
     app.set_modules([{"Generator": {"Type": application.Application.TYPE_SOURCE}},

@@ -113,6 +113,7 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     Returns:
         Markdown text ending with a newline.
     """
+    # Long on purpose: summary.md's sections in the order a reader meets them, in one place.
     use_case = run.use_case if run else None
     differences = setting_differences(run) if run else []
     # The paper's numbers belong to its setting: outside it, a comparison would score nothing.
