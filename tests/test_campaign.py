@@ -166,6 +166,50 @@ def test_a_two_node_ray_cluster_writes_the_same_bytes(uncut, tmp_path: Path) -> 
         cluster.shutdown()
 
 
+def test_a_lost_ray_node_s_runs_are_retried_on_the_remaining_node(uncut, tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    # The two-node cluster above; once both runs are executing (one on each node: one CPU
+    # each), the second node's processes are killed outright, raylet and all.
+    pytest.importorskip("ray", reason="Ray is not installed (pip install -e .[ray]); the local "
+                                      "engine's killed worker is tested in tests/test_faults.py")
+    import tempfile
+    import threading
+    import time
+
+    from ray.cluster_utils import Cluster
+
+    reference, specs, _, _ = uncut
+    # A task makes its scratch folder (yafs-safetail-run-*) once it executes: in a folder of
+    # this test's own (short: Ray's sockets stay in /tmp), two of them mean both are running.
+    scratch = Path(tempfile.mkdtemp(prefix="ray-node-lost-", dir="/tmp"))
+    monkeypatch.setenv("TMPDIR", str(scratch))
+    monkeypatch.setenv("RAY_TMPDIR", "/tmp")
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    try:
+        doomed = cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+
+        def lose_the_second_node() -> None:
+            deadline = time.monotonic() + 300
+            while len(list(scratch.glob("yafs-safetail-run-*"))) < len(specs) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            cluster.remove_node(doomed, allow_graceful=False)
+
+        killer = threading.Thread(target=lose_the_second_node)
+        killer.start()
+        out = tmp_path / "ray-node-lost"
+        result = run_campaign(specs, out, ray_address=cluster.address, workers=2, stream=io.StringIO())
+        killer.join()
+        assert result.failed == 0, [r.error for r in result.runs]
+        # Every run came back from the node that survived, the same bytes as the local engine's.
+        assert {run.node for run in result.runs} == {cluster.head_node.node_id[:8]}
+        for spec in specs:
+            assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name
+    finally:
+        cluster.shutdown()
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
 def test_a_run_interrupted_while_training_resumes_from_its_checkpoint(uncut, tmp_path: Path,
                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     import dataclasses

@@ -195,3 +195,115 @@ def test_overwrite_on_a_full_disk_keeps_the_earlier_run_byte_for_byte(small_disk
         "earlier results there are untouched"], done.stderr[-2000:]
     assert _snapshot(out) == before
     assert sorted(p.name for p in small_disk.iterdir()) == ["filler.bin", "run"]
+
+
+# --------------------------------------------------------------------------------------------
+# A campaign worker killed outright (SIGKILL, as the out-of-memory killer does)
+
+_GRID = "[base]\nsteps_scale = 0.013\nfigures = false\n[axes]\nseed = [0, 1, 2]\n"
+
+
+def _campaign(cwd: Path, *extra: str, env: dict[str, str] | None = None):
+    """``yafs-safetail campaign`` in ``cwd`` with relative paths, so that every run.json
+    records the same command whichever folder the campaign ran in."""
+    import subprocess
+    import sys
+
+    cwd.mkdir(exist_ok=True)
+    (cwd / "grid.toml").write_text(_GRID)
+    return subprocess.run([sys.executable, "-m", "yafs_safetail.cli", "campaign", "--grid", "grid.toml",
+                           "--out", "campaign", "--workers", "2", "--quiet", *extra],
+                          cwd=cwd, capture_output=True, text=True, timeout=900,
+                          env={**os.environ, **(env or {})})
+
+
+def _run_files(campaign: Path) -> dict[str, bytes]:
+    """Every file of the campaign folder but the logs, the lock and campaign.json (which
+    record times and statuses)."""
+    skipped = {"run.log", "campaign.log", "campaign.json", ".campaign.lock"}
+    return {str(p.relative_to(campaign)): p.read_bytes() for p in sorted(campaign.rglob("*"))
+            if p.is_file() and p.name not in skipped}
+
+
+def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_completes_it(tmp_path):
+    import json
+
+    from yafs_safetail.runs.engines import KILL_RUN_ENV
+    from yafs_safetail.runs.grid import load_grid
+
+    uncut = _campaign(tmp_path / "uncut")
+    assert uncut.returncode == 0, uncut.stderr[-2000:]
+    specs = load_grid(tmp_path / "uncut" / "grid.toml")
+    victim = specs[1]
+    out = tmp_path / "killed" / "campaign"
+
+    # The worker running the second run kills itself with SIGKILL just before publishing it.
+    killed = _campaign(tmp_path / "killed", env={KILL_RUN_ENV: victim.name})
+    assert killed.returncode == 1, killed.stderr[-2000:]
+    failed_lines = [line for line in killed.stderr.splitlines() if f"failed {victim.name}" in line]
+    assert len(failed_lines) == 1 and "killed by signal 9 (SIGKILL)" in failed_lines[0], killed.stderr[-2000:]
+    state = json.loads((out / "campaign.json").read_text())
+    assert [run["status"] for run in state["runs"]] == ["done", "failed", "done"]
+    assert "its worker process" in state["runs"][1]["error"]
+    assert "killed by signal 9 (SIGKILL)" in state["runs"][1]["error"]
+    assert not (out / victim.name).exists()
+    stamps = {spec.name: (out / spec.name / "run.json").stat().st_mtime_ns for spec in specs if spec != victim}
+
+    # The same command again: the killed run only, then the same files as without the kill.
+    again = _campaign(tmp_path / "killed")
+    assert again.returncode == 0, again.stderr[-2000:]
+    state = json.loads((out / "campaign.json").read_text())
+    assert [run["status"] for run in state["runs"]] == ["done earlier", "done", "done earlier"]
+    assert stamps == {name: (out / name / "run.json").stat().st_mtime_ns for name in stamps}
+    assert _run_files(out) == _run_files(tmp_path / "uncut" / "campaign")
+    # Nothing of the killed attempt is left: no temporary folder, no lock beside the runs.
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in (tmp_path / "uncut" / "campaign").iterdir())
+
+
+# --------------------------------------------------------------------------------------------
+# run_usecase.py's baseline worker killed outright
+
+#: run_usecase.py with the baseline worker's job replaced by a SIGKILL to itself (the worker is
+#: forked, so it inherits the replacement; the main process never runs the job itself).
+_KILLED_BASELINE_WORKER = (
+    "import os, signal, sys\n"
+    "from yafs_safetail.runs import workers\n"
+    "workers.MethodsJob.run = lambda self: os.kill(os.getpid(), signal.SIGKILL)\n"
+    "from yafs_safetail.cli import run_cli\n"
+    "from yafs_safetail.commands import run_usecase\n"
+    "sys.exit(run_cli(run_usecase.main, sys.argv[1:]))\n"
+)
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["new folder", "earlier run with --overwrite"])
+def test_a_killed_baseline_worker_is_one_line_and_leaves_nothing(tmp_path, earlier):
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    before = {}
+    if earlier:
+        _fake_results_folder(out)
+        before = _snapshot(out)
+    done = subprocess.run([sys.executable, "-c", _KILLED_BASELINE_WORKER, "--uc", "1", "--steps-scale", "0.013",
+                           "--workers", "2", "--quiet", "--out", str(out), *(["--overwrite"] if earlier else [])],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode != 0
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr[-2000:]
+    assert lines[0].startswith("error: the baseline worker (pid "), lines[0]
+    assert "was killed by signal 9 (SIGKILL); the run stopped and wrote no results" in lines[0]
+    if earlier:
+        assert _snapshot(out) == before
+    # Only SafeTail's training checkpoint (written when its training ended, before the worker
+    # was found dead) is left beside --out, as after Ctrl-C: a resume point, not results.
+    from yafs_safetail.runs.checkpoint import CHECKPOINT_MARKER, checkpoint_folder
+
+    leftovers = sorted(p.name for p in tmp_path.iterdir())
+    assert leftovers == [".run.checkpoint", *(["run"] if earlier else [])], (leftovers, lines[0])
+    assert (checkpoint_folder(out) / CHECKPOINT_MARKER).is_file()
+    if not earlier:  # the same command with --resume (and no kill) completes the run
+        resumed = _run_usecase("--uc", "1", "--steps-scale", "0.013", "--workers", "2", "--quiet",
+                               "--out", str(out), "--resume")
+        assert resumed.returncode == 0, resumed.stderr[-2000:]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]

@@ -10,9 +10,10 @@ through the same staging and rename, so the campaign folder need not be shared b
 
 from __future__ import annotations
 
-import concurrent.futures as futures
+import contextlib
 import io
 import multiprocessing
+import multiprocessing.connection
 import os
 import shutil
 import signal
@@ -21,6 +22,7 @@ import tempfile
 import time
 from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass, replace
+from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
@@ -125,8 +127,69 @@ def _init_worker() -> None:
     end_with_parent()
 
 
+#: Fault injection for the tests only (tests/test_faults.py, docs/faults.md): a local worker
+#: given the run named here kills itself with SIGKILL, as the out-of-memory killer would, at
+#: the worst moment: its results all written, just before they would be renamed into place.
+#: Unset (always, outside those tests), it does nothing.
+KILL_RUN_ENV = "YAFS_SAFETAIL_TEST_KILL_RUN"
+
+
+def _kill_before_publishing() -> None:
+    from yafs_safetail.runs.output import StagedOutput
+
+    def killed(output: StagedOutput) -> None:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    # This worker dies with the patch; the next worker is a fresh interpreter.
+    setattr(StagedOutput, "publish", killed)  # noqa: B010
+
+
+def _worker_loop(connection: Connection) -> None:
+    """A local worker: run each task the campaign sends until it sends None (or goes away)."""
+    from yafs_safetail.cli import Terminated
+
+    _init_worker()
+    try:
+        while True:
+            try:
+                task = connection.recv()
+            except EOFError:  # the campaign went away
+                return
+            if task is None:
+                return
+            if os.environ.get(KILL_RUN_ENV) == task.spec.name:
+                _kill_before_publishing()
+            connection.send(execute(task))
+    except Terminated:  # stopped by the campaign (Ctrl-C, SIGTERM): its run has unwound
+        return
+
+
+class _LocalWorker:
+    """One spawned worker process and its end of the pipe; one run at a time."""
+
+    def __init__(self, context: Any) -> None:
+        self.connection, child = context.Pipe(duplex=True)
+        self.process = context.Process(target=_worker_loop, args=(child,),
+                                       name="yafs-safetail-campaign-worker")
+        self.process.start()
+        child.close()  # so that the worker's death reads as end of file here
+
+
+@dataclass(eq=False)
+class _LocalRun:
+    """A run under way on a local worker (the campaign's handle for it)."""
+
+    worker: _LocalWorker
+    started_s: float
+
+
 class LocalEngine:
-    """``workers`` processes on this machine (concurrent.futures)."""
+    """``workers`` processes on this machine, each running one run after another.
+
+    Each worker is watched on its own, so one that dies outright (SIGKILL from the
+    out-of-memory killer) costs only its own run, reported with the signal; the others'
+    runs go on, and a fresh worker takes the next run.
+    """
 
     def __init__(self, workers: int) -> None:
         self.slots = workers
@@ -134,36 +197,62 @@ class LocalEngine:
         # loads a user's policy, a test suite), whose threads and locks do not survive fork.
         # A spawned worker is a fresh interpreter; it imports TensorFlow once and then runs
         # run after run, so the import is paid once per worker, not once per run.
-        self._pool = futures.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                                 mp_context=multiprocessing.get_context("spawn"))
+        self._context = multiprocessing.get_context("spawn")
+        self._idle: list[_LocalWorker] = []
+        self._busy: list[_LocalWorker] = []
 
-    def submit(self, task: RunTask) -> futures.Future[RunResult]:
-        return self._pool.submit(execute, task)
+    def submit(self, task: RunTask) -> _LocalRun:
+        self._idle = [worker for worker in self._idle if worker.process.is_alive()]
+        worker = self._idle.pop() if self._idle else _LocalWorker(self._context)
+        try:
+            worker.connection.send(task)
+        except OSError:  # an idle worker that died just now: a fresh one takes the run
+            worker.process.join()
+            worker.connection.close()
+            worker = _LocalWorker(self._context)
+            worker.connection.send(task)
+        self._busy.append(worker)
+        return _LocalRun(worker, time.perf_counter())
 
     def wait(self, pending: Collection[Any], timeout_s: float) -> set[Any]:
-        done, _ = futures.wait(pending, timeout=timeout_s, return_when=futures.FIRST_COMPLETED)
-        return set(done)
+        by_event: dict[Any, _LocalRun] = {}
+        for run in pending:
+            by_event[run.worker.connection] = by_event[run.worker.process.sentinel] = run
+        ready = multiprocessing.connection.wait(list(by_event), timeout=timeout_s)
+        return {by_event[event] for event in ready}
 
-    def result(self, handle: futures.Future[RunResult], task: RunTask) -> RunResult:
+    def result(self, handle: _LocalRun, task: RunTask) -> RunResult:
+        worker = handle.worker
+        self._busy.remove(worker)
         try:
-            return handle.result()
-        except futures.process.BrokenProcessPool as error:
-            # A worker died outright (killed, out of memory): the pool is unusable, so this
-            # run is reported and a fresh pool takes the next ones.
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = futures.ProcessPoolExecutor(
-                max_workers=self.slots, initializer=_init_worker,
-                mp_context=multiprocessing.get_context("spawn"))
-            return RunResult(task.spec.name, task.spec.run_id,
-                             f"its worker process died ({one_line(error)})", 0.0)
+            if worker.connection.poll():
+                result: RunResult = worker.connection.recv()
+                self._idle.append(worker)
+                return result
+        except (EOFError, OSError):  # the worker died before it could answer
+            pass
+        from yafs_safetail.runs.workers import how_it_ended
+
+        worker.process.join()
+        worker.connection.close()
+        return RunResult(task.spec.name, task.spec.run_id,
+                         f"its worker process (pid {worker.process.pid}) "
+                         f"{how_it_ended(worker.process.exitcode)}; nothing of it was kept, "
+                         "the same command again runs it", time.perf_counter() - handle.started_s)
 
     def close(self, interrupted: bool = False) -> None:
-        if interrupted:
-            # The executor has no public way to stop running calls; its processes get
-            # SIGTERM, which unwinds their runs (staging folders removed).
-            for process in list(getattr(self._pool, "_processes", {}).values()):
-                process.terminate()
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        workers = self._idle + self._busy
+        for worker in workers:
+            if interrupted:
+                # SIGTERM unwinds a worker's run (its staging folder removed).
+                worker.process.terminate()
+            else:
+                with contextlib.suppress(OSError):
+                    worker.connection.send(None)
+        for worker in workers:
+            worker.process.join()
+            worker.connection.close()
+        self._idle, self._busy = [], []
 
 
 def _execute_and_pack(task: RunTask) -> RunResult:
@@ -201,6 +290,10 @@ def unpack(result: RunResult, task: RunTask) -> RunResult:
     return replace(result, archive=None)
 
 
+#: How many times Ray runs a task again after its worker process or node died.
+RAY_TASK_RETRIES = 3
+
+
 class RayEngine:
     """Ray tasks: a local Ray runtime with ``workers`` CPUs, or the cluster at ``address``."""
 
@@ -227,7 +320,11 @@ class RayEngine:
                 raise ValueError(f"--ray-address {address}: cannot connect: {one_line(error)}") from None
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.slots = min(workers, cpus) if workers else cpus
-        self._remote = ray.remote(num_cpus=1, max_retries=0)(_execute_and_pack)
+        # A task whose worker or node died (a raylet lost, the out-of-memory killer) is run
+        # again elsewhere: it writes only into its own node's scratch folder and sends the
+        # run back whole, so a second attempt is safe. A run's own errors are not retried
+        # (execute returns them; Ray's retry_exceptions stays off).
+        self._remote = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES)(_execute_and_pack)
 
     def submit(self, task: RunTask) -> Any:
         return self._remote.remote(task)

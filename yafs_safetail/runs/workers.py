@@ -111,6 +111,22 @@ def end_with_parent() -> None:
             pass
 
 
+def how_it_ended(exitcode: int | None) -> str:
+    """How a worker process that sent no result ended, for a one-line error."""
+    if exitcode is not None and exitcode < 0:
+        try:
+            name = f" ({signal.Signals(-exitcode).name})"
+        except ValueError:
+            name = ""
+        return f"was killed by signal {-exitcode}{name}"
+    return f"ended without a result (exit status {exitcode})"
+
+
+class WorkerDied(ChildProcessError):
+    """A baseline worker process that died without a result (killed, e.g. by the
+    out-of-memory killer's SIGKILL): one line naming it and the signal."""
+
+
 def _worker_main(job: MethodsJob, sender: Connection) -> None:
     # A worker is stopped by SIGTERM (worker.stop()); it must die at once, not unwind the
     # parent's handlers it inherited through fork.
@@ -148,8 +164,9 @@ class MethodsWorker:
             ok, payload = self._receiver.recv()
         except EOFError:
             self._process.join()
-            raise RuntimeError(
-                f"baseline worker ended without a result (exit code {self._process.exitcode})"
+            raise WorkerDied(
+                f"the baseline worker (pid {self._process.pid}: {', '.join(self.job.method_names)}) "
+                f"{how_it_ended(self._process.exitcode)}; the run stopped and wrote no results"
             ) from None
         self._process.join()
         if not ok:
