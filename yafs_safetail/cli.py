@@ -168,7 +168,8 @@ def configure_verbosity(args: argparse.Namespace) -> int:
     return level
 
 
-def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+def raise_terminated(signum: int, frame: FrameType | None) -> None:
+    """The SIGTERM handler of every process of a run (the command's and its workers')."""
     _terminating.set()
     raise Terminated()
 
@@ -187,7 +188,7 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     # explicit TF_CPP_MIN_LOG_LEVEL in the environment still wins.
     os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _raise_terminated)
+        signal.signal(signal.SIGTERM, raise_terminated)
     _terminating.clear()
     try:
         code = main(argv)

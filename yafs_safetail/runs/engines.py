@@ -26,6 +26,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+from yafs_safetail.cli import raise_terminated
 from yafs_safetail.runs.engine_options import ENGINES
 from yafs_safetail.runs.grid import RunSpec, config_run_id, make_config
 from yafs_safetail.runs.output import StagedOutput
@@ -109,19 +110,13 @@ def execute(task: RunTask) -> RunResult:
     return RunResult(task.spec.name, task.spec.run_id, error, time.perf_counter() - started)
 
 
-def _raise_terminated(signum: int, frame: Any) -> None:
-    from yafs_safetail.cli import Terminated
-
-    raise Terminated()
-
-
 def _init_worker() -> None:
     from yafs_safetail.runs.workers import end_with_parent
 
     # Ctrl-C reaches the whole process group; it is the campaign's to handle (it stops the
     # workers with SIGTERM). SIGTERM unwinds the run, which removes its staging folder.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _raise_terminated)
+    signal.signal(signal.SIGTERM, raise_terminated)
     for name, value in ONE_CORE_ENV.items():
         os.environ.setdefault(name, value)
     end_with_parent()
