@@ -410,7 +410,7 @@ def test_load_sweep_target_and_links_options(tmp_path):
 
 
 def test_sweep_checks_are_computed_from_the_rows():
-    from yafs_safetail.contention.sweep import sweep_checks
+    from yafs_safetail.contention.sweep_report import sweep_checks
 
     def row(load, method, p99_s, copies):
         return {"load": load, "method": method, "p99_s": p99_s, "mean_n_selected": copies}
@@ -429,8 +429,8 @@ def test_sweep_checks_are_computed_from_the_rows():
 
 
 def test_both_safetails_are_checked_and_neither_is_a_fixed_method():
-    from yafs_safetail.contention.sweep import (
-        SAFETAIL_CA,
+    from yafs_safetail.contention.sweep import SAFETAIL_CA
+    from yafs_safetail.contention.sweep_report import (
         best_fixed_p99,
         glance_markdown,
         seeds_markdown,

@@ -47,11 +47,10 @@ from yafs_safetail.cli import (
     non_negative_int,
     positive_int,
 )
-from yafs_safetail.contention.sweep import (
-    SweepConfig,
+from yafs_safetail.contention.sweep import SweepConfig, load_point_specs
+from yafs_safetail.contention.sweep_report import (
     checks_markdown,
     glance_markdown,
-    load_point_specs,
     markdown_table,
     plot_sweep,
     seeds_markdown,
