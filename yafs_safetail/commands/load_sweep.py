@@ -50,8 +50,8 @@ from yafs_safetail.cli import (
 from yafs_safetail.contention.sweep import SweepConfig, load_point_specs
 from yafs_safetail.contention.sweep_report import (
     checks_markdown,
+    frame_markdown_table,
     glance_markdown,
-    markdown_table,
     plot_sweep,
     seeds_markdown,
 )
@@ -101,7 +101,7 @@ def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, co
     write_text_atomic(folder / "SWEEP.md",
                       f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, {args.links} links, seed {seed})\n\n"
                       + _safetail_lines(config) + f"`{command}`\n\n" + glance_markdown(frame)
-                      + "\n## Every row\n\n" + markdown_table(table)
+                      + "\n## Every row\n\n" + frame_markdown_table(table)
                       + "\n\n## Goals\n\n" + checks_markdown(frame))
     plot_sweep(frame, folder)
     write_text_atomic(folder / "run.json", json.dumps({

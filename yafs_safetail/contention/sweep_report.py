@@ -211,7 +211,7 @@ def checks_markdown(frame: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def markdown_table(frame: pd.DataFrame) -> str:
+def frame_markdown_table(frame: pd.DataFrame) -> str:
     """A Markdown table, floats to three decimals."""
     def cell(value: object) -> str:
         return f"{value:.3f}" if isinstance(value, float | np.floating) else str(value)
