@@ -66,6 +66,11 @@ class RequestRecord:
         compute_s: Eq. 1 compute term of the winning copy (NaN if fallback).
         reward: the Eq. 5 reward a learning method computed (NaN for methods that do not learn).
         epsilon: a learning method's exploration rate when it decided (NaN otherwise).
+        lost: copies lost to a failed server (docs/failures_energy.md).
+        end_reason: why the request ended (``edge.failures.END_REASONS``).
+        server_energy_j: the servers' marginal energy of every copy (NaN when not priced).
+        radio_energy_j: the user device's radio energy of every upload and download.
+        saved_energy_j: the server energy cancelled copies did not spend.
     """
 
     method: str
@@ -85,6 +90,16 @@ class RequestRecord:
     compute_s: float
     reward: float = math.nan
     epsilon: float = math.nan
+    lost: int = 0
+    end_reason: str = "reply"
+    server_energy_j: float = math.nan
+    radio_energy_j: float = math.nan
+    saved_energy_j: float = 0.0
+
+    @property
+    def energy_j(self) -> float:
+        """Everything the request's copies cost: the servers' and the device's radio."""
+        return self.server_energy_j + self.radio_energy_j
 
     @property
     def n_selected(self) -> int:
