@@ -37,6 +37,8 @@ CASES = {
     **{f"{command} --help": (["yafs-safetail", command, "--help"], 0)
        for command in ("reproduce", "campaign", "calibrate", "compare")},
     "reproduce --uc 9": (["yafs-safetail", "reproduce", "--uc", "9"], 2),
+    "learning rate --help": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--help"], 0),
+    "learning rate --uc 7": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--uc", "7"], 2),
 }
 
 

@@ -71,3 +71,7 @@ def figure_formats(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(
             f"{text!r}: expected a comma-separated list of {', '.join(FIGURE_FORMATS)}")
     return tuple(fmt for fmt in FIGURE_FORMATS if fmt in asked)
+
+#: The learning-rate rule's grid (docs/calibration.md rule 3; experiments/choose_learning_rate.py),
+#: here so the command shows it without importing the runner.
+LEARNING_RATE_GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)

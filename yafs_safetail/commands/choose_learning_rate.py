@@ -21,6 +21,7 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
+    UsageError,
     add_verbosity_options,
     configure_verbosity,
     int_list,
@@ -29,15 +30,11 @@ from yafs_safetail.cli import (
     positive_float_list,
     positive_int,
 )
-from yafs_safetail.edge.calibration import seed_set
-from yafs_safetail.runs.learning_rate import (
-    RATE_GRID,
-    USE_CASES,
-    LearningRateConfig,
-    LearningRateRunError,
-    choose_learning_rates,
-    main_rows,
-)
+from yafs_safetail.defaults import LEARNING_RATE_GRID as RATE_GRID
+from yafs_safetail.edge.published import USE_CASES
+
+# The runner (pandas, the simulator, TensorFlow behind it) is imported after the options are
+# read, so --help and a bad option answer at once (issue 30).
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -58,10 +55,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     bad = [uc for uc in args.uc if uc not in USE_CASES]
     if bad:
-        raise LearningRateRunError(f"--uc: {bad[0]} is not a use case (1, 2 or 3)")
+        raise UsageError(f"--uc: {bad[0]} is not a use case (1, 2 or 3)")
+    from yafs_safetail.runs.learning_rate import (
+        LearningRateConfig,
+        choose_learning_rates,
+        main_rows,
+    )
     configure_verbosity(args)
     command = shlex.join([*invocation("experiments/choose_learning_rate.py"),
                           *(sys.argv[1:] if argv is None else argv)])
+    from yafs_safetail.edge.calibration import seed_set
     seeds = tuple(seed_set("learner_calibration") if args.seeds is None else args.seeds)
     document = choose_learning_rates(LearningRateConfig(
         use_cases=tuple(args.uc), rates=tuple(args.rates), seeds=seeds, steps_scale=args.steps_scale,

@@ -26,13 +26,15 @@ import pandas as pd
 
 import yafs_safetail
 from yafs_safetail import results
+from yafs_safetail.defaults import LEARNING_RATE_GRID
 from yafs_safetail.edge.calibration import seed_set
+from yafs_safetail.edge.published import USE_CASES as PUBLISHED_USE_CASES
 from yafs_safetail.methods.registry import SAFETAIL
 from yafs_safetail.runs.workers import end_with_parent
 
 #: The candidate rates, smallest first (a log grid around Adam's usual 1e-3).
-RATE_GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
-USE_CASES = (1, 2, 3)
+RATE_GRID = LEARNING_RATE_GRID
+USE_CASES = PUBLISHED_USE_CASES
 RATES_FILE = "learning_rates.csv"
 CHOICE_FILE = "learning_rates.json"
 
