@@ -130,6 +130,36 @@ class EdgeTopology:
     server_capacity: dict[int | str, int | None] = field(default_factory=dict)
 
 
+@dataclass
+class _Nodes:
+    """What a topology's entities say, before its links are read."""
+
+    types: dict[int | str, str] = field(default_factory=dict)
+    user_location: tuple[float, float] = (0.0, 0.0)
+    server_order: list[int | str] = field(default_factory=list)
+    load_devices: dict[int | str, int | None] = field(default_factory=dict)
+    server_ipt: dict[int | str, float] = field(default_factory=dict)
+    server_capacity: dict[int | str, int | None] = field(default_factory=dict)
+
+    def only(self, kind: str, name: str) -> int | str:
+        """The one node of ``kind`` (a user, an access point), or ScenarioError."""
+        nodes = [node for node, node_kind in self.types.items() if node_kind == kind]
+        if len(nodes) != 1:
+            raise ScenarioError(name, "entity.type", f"expected exactly one {kind!r}, found {len(nodes)}")
+        return nodes[0]
+
+
+@dataclass
+class _Links:
+    """What a topology's links say."""
+
+    conditions: dict[int | str, int] = field(default_factory=dict)
+    server_bps: dict[int | str, float] = field(default_factory=dict)
+    server_pr_s: dict[int | str, float] = field(default_factory=dict)
+    user_bps: float | None = None
+    user_pr_s: float | None = None
+
+
 def load_topology(source: JsonSource) -> EdgeTopology:
     """Reads and validates a SafeTail topology JSON.
 
@@ -149,13 +179,32 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         raise ScenarioError(name, "entity", "missing or empty list of entities")
     if not isinstance(links, list) or not links:
         raise ScenarioError(name, "link", "missing or empty list of links")
+    nodes = _read_entities(name, entities)
+    user, access_point = nodes.only(USER_TYPE, name), nodes.only(ACCESS_POINT_TYPE, name)
+    if not nodes.server_order:
+        raise ScenarioError(name, "entity.type", "no 'edge_server' entity")
+    read = _read_links(name, links, nodes, user, access_point)
+    assert read.user_bps is not None and read.user_pr_s is not None  # _read_links checked both
+    return EdgeTopology(
+        source=name,
+        data=data,
+        user_node=user,
+        access_point_node=access_point,
+        edge_server_nodes=tuple(nodes.server_order),
+        conditions=read.conditions,
+        load_devices=nodes.load_devices,
+        user_location=nodes.user_location,
+        user_link_bandwidth_bps=read.user_bps,
+        user_link_pr_s=read.user_pr_s,
+        server_link_bandwidth_bps=read.server_bps,
+        server_link_pr_s=read.server_pr_s,
+        server_ipt=nodes.server_ipt,
+        server_capacity=nodes.server_capacity,
+    )
 
-    types: dict[int | str, str] = {}
-    user_location = (0.0, 0.0)
-    load_devices: dict[int | str, int | None] = {}
-    server_order: list[int | str] = []
-    server_ipt: dict[int | str, float] = {}
-    server_capacity: dict[int | str, int | None] = {}
+
+def _read_entities(name: str, entities: list[Any]) -> _Nodes:
+    nodes = _Nodes()
     for index, entity in enumerate(entities):
         where = f"entity[{index}]"
         if not isinstance(entity, dict):
@@ -163,7 +212,7 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         node = entity.get("id")
         if not _is_node_id(node):
             raise ScenarioError(name, f"{where}.id", "missing or not an integer/string node id")
-        if node in types:
+        if node in nodes.types:
             raise ScenarioError(name, f"{where}.id", f"duplicate node id {node!r}")
         kind = entity.get("type")
         if kind not in (USER_TYPE, ACCESS_POINT_TYPE, EDGE_SERVER_TYPE):
@@ -173,52 +222,43 @@ def load_topology(source: JsonSource) -> EdgeTopology:
                 f"got {kind!r}; expected one of {USER_TYPE!r}, {ACCESS_POINT_TYPE!r}, "
                 f"{EDGE_SERVER_TYPE!r}",
             )
-        types[node] = kind
+        nodes.types[node] = kind
         if kind == USER_TYPE:
-            coords = []
-            for key in ("x", "y"):
-                value = entity.get(key, 0.0)
-                if not _is_number(value):
-                    raise ScenarioError(name, f"{where}.{key}", f"not a finite number: {value!r}")
-                coords.append(float(value))
-            user_location = (coords[0], coords[1])
+            nodes.user_location = _user_location(name, where, entity)
         if kind == EDGE_SERVER_TYPE:
-            device = entity.get(LOAD_DEVICE_KEY)
-            if device is not None and (
-                not isinstance(device, int) or isinstance(device, bool) or device < 0
-            ):
-                raise ScenarioError(
-                    name, f"{where}.{LOAD_DEVICE_KEY}", f"not a non-negative integer: {device!r}"
-                )
-            load_devices[node] = device
-            ipt = entity.get(IPT_KEY, REFERENCE_SERVER_IPT)
-            if not _is_number(ipt) or ipt <= 0:
-                raise ScenarioError(name, f"{where}.{IPT_KEY}", f"not a positive number: {ipt!r}")
-            server_ipt[node] = float(ipt)
-            capacity = entity.get(CAPACITY_KEY)
-            if capacity is not None and (
-                not isinstance(capacity, int) or isinstance(capacity, bool) or capacity < 1
-            ):
-                raise ScenarioError(name, f"{where}.{CAPACITY_KEY}", f"not a positive integer: {capacity!r}")
-            server_capacity[node] = capacity
-            server_order.append(node)
+            _read_server(name, where, node, entity, nodes)
+    return nodes
 
-    users = [node for node, kind in types.items() if kind == USER_TYPE]
-    access_points = [node for node, kind in types.items() if kind == ACCESS_POINT_TYPE]
-    if len(users) != 1:
-        raise ScenarioError(name, "entity.type", f"expected exactly one 'user', found {len(users)}")
-    if len(access_points) != 1:
-        raise ScenarioError(
-            name, "entity.type", f"expected exactly one 'access_point', found {len(access_points)}"
-        )
-    if not server_order:
-        raise ScenarioError(name, "entity.type", "no 'edge_server' entity")
-    user, access_point = users[0], access_points[0]
 
-    conditions: dict[int | str, int] = {}
-    server_link_bps: dict[int | str, float] = {}
-    server_link_pr_s: dict[int | str, float] = {}
-    user_link_bps = user_link_pr_s = None
+def _user_location(name: str, where: str, entity: dict[str, Any]) -> tuple[float, float]:
+    coords = []
+    for key in ("x", "y"):
+        value = entity.get(key, 0.0)
+        if not _is_number(value):
+            raise ScenarioError(name, f"{where}.{key}", f"not a finite number: {value!r}")
+        coords.append(float(value))
+    return coords[0], coords[1]
+
+
+def _read_server(name: str, where: str, node: int | str, entity: dict[str, Any], nodes: _Nodes) -> None:
+    device = entity.get(LOAD_DEVICE_KEY)
+    if device is not None and (not isinstance(device, int) or isinstance(device, bool) or device < 0):
+        raise ScenarioError(name, f"{where}.{LOAD_DEVICE_KEY}", f"not a non-negative integer: {device!r}")
+    nodes.load_devices[node] = device
+    ipt = entity.get(IPT_KEY, REFERENCE_SERVER_IPT)
+    if not _is_number(ipt) or ipt <= 0:
+        raise ScenarioError(name, f"{where}.{IPT_KEY}", f"not a positive number: {ipt!r}")
+    nodes.server_ipt[node] = float(ipt)
+    capacity = entity.get(CAPACITY_KEY)
+    if capacity is not None and (not isinstance(capacity, int) or isinstance(capacity, bool) or capacity < 1):
+        raise ScenarioError(name, f"{where}.{CAPACITY_KEY}", f"not a positive integer: {capacity!r}")
+    nodes.server_capacity[node] = capacity
+    nodes.server_order.append(node)
+
+
+def _read_links(name: str, links: list[Any], nodes: _Nodes, user: int | str,
+                access_point: int | str) -> _Links:
+    read = _Links()
     for index, link in enumerate(links):
         where = f"link[{index}]"
         if not isinstance(link, dict):
@@ -226,57 +266,32 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         ends: list[int | str] = []
         for key in ("s", "d"):
             node = link.get(key)
-            if not _is_node_id(node) or node not in types:
+            if not _is_node_id(node) or node not in nodes.types:
                 raise ScenarioError(name, f"{where}.{key}", f"unknown node id {node!r}")
             ends.append(node)
         for key in ("BW", "PR"):
             value = link.get(key)
             if not _is_number(value) or value < 0 or (key == "BW" and value == 0):
-                raise ScenarioError(
-                    name, f"{where}.{key}", f"missing or not a positive number: {value!r}"
-                )
+                raise ScenarioError(name, f"{where}.{key}", f"missing or not a positive number: {value!r}")
         pair = set(ends)
         if pair == {user, access_point}:
-            user_link_bps, user_link_pr_s = float(link["BW"]) * YAFS_BW_BPS, float(link["PR"])
+            read.user_bps, read.user_pr_s = float(link["BW"]) * YAFS_BW_BPS, float(link["PR"])
             continue
-        servers = [node for node in ends if types[node] == EDGE_SERVER_TYPE]
+        servers = [node for node in ends if nodes.types[node] == EDGE_SERVER_TYPE]
         if len(servers) != 1 or access_point not in pair:
-            raise ScenarioError(
-                name,
-                where,
-                "only user-access_point and access_point-edge_server links are supported",
-            )
+            raise ScenarioError(name, where, "only user-access_point and access_point-edge_server links are supported")
         server = servers[0]
-        if server in conditions:
+        if server in read.conditions:
             raise ScenarioError(name, where, f"edge server {server!r} has a second link")
         condition = link.get(CONDITION_KEY)
         if not isinstance(condition, int) or isinstance(condition, bool):
-            raise ScenarioError(
-                name, f"{where}.{CONDITION_KEY}", f"missing or not an integer: {condition!r}"
-            )
-        conditions[server] = condition
-        server_link_bps[server] = float(link["BW"]) * YAFS_BW_BPS
-        server_link_pr_s[server] = float(link["PR"])
-    if user_link_bps is None or user_link_pr_s is None:
+            raise ScenarioError(name, f"{where}.{CONDITION_KEY}", f"missing or not an integer: {condition!r}")
+        read.conditions[server] = condition
+        read.server_bps[server] = float(link["BW"]) * YAFS_BW_BPS
+        read.server_pr_s[server] = float(link["PR"])
+    if read.user_bps is None or read.user_pr_s is None:
         raise ScenarioError(name, "link", "no link between the user and the access point")
-    for server in server_order:
-        if server not in conditions:
-            raise ScenarioError(
-                name, "link", f"edge server {server!r} is not linked to the access point"
-            )
-    return EdgeTopology(
-        source=name,
-        data=data,
-        user_node=user,
-        access_point_node=access_point,
-        edge_server_nodes=tuple(server_order),
-        conditions=conditions,
-        load_devices=load_devices,
-        user_location=user_location,
-        user_link_bandwidth_bps=user_link_bps,
-        user_link_pr_s=user_link_pr_s,
-        server_link_bandwidth_bps=server_link_bps,
-        server_link_pr_s=server_link_pr_s,
-        server_ipt=server_ipt,
-        server_capacity=server_capacity,
-    )
+    for server in nodes.server_order:
+        if server not in read.conditions:
+            raise ScenarioError(name, "link", f"edge server {server!r} is not linked to the access point")
+    return read
