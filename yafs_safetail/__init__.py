@@ -1,9 +1,10 @@
 """yafs-safetail: SafeTail learned redundant edge dispatch on a YAFS-compatible simulator.
 
-Importing the package makes the Gymnasium environment ``yafs_safetail/SafeTail-v0`` available
-to ``gymnasium.make`` (``yafs_safetail.sim.env``; the environment module itself loads on
-``gymnasium.make``). The package does not import Gymnasium itself: the command line answers
-``--help`` and argument errors without loading NumPy or Gymnasium. The id is registered as soon
+Importing the package makes the Gymnasium environments ``yafs_safetail/SafeTail-v0``
+(``yafs_safetail.sim.env``) and ``yafs_safetail/SafeTailContention-v0``
+(``yafs_safetail.contention.env``) available to ``gymnasium.make`` (an environment's module
+itself loads on ``gymnasium.make``). The package does not import Gymnasium itself: the command line answers
+``--help`` and argument errors without loading NumPy or Gymnasium. The ids are registered as soon
 as Gymnasium's registry exists, whether it was imported before this package or after.
 """
 
@@ -19,17 +20,20 @@ from typing import Any
 __version__ = "0.1.0"
 
 ENV_ID = "yafs_safetail/SafeTail-v0"
-_ENV_ENTRY_POINT = "yafs_safetail.sim.env:SafeTailEnv"
+CONTENTION_ENV_ID = "yafs_safetail/SafeTailContention-v0"
+_ENTRY_POINTS = {ENV_ID: "yafs_safetail.sim.env:SafeTailEnv",
+                 CONTENTION_ENV_ID: "yafs_safetail.contention.env:ContentionEnv"}
 _REGISTRY_MODULE = "gymnasium.envs.registration"
 
 
 def _register(registration: ModuleType) -> None:
-    if ENV_ID not in registration.registry:
-        registration.register(id=ENV_ID, entry_point=_ENV_ENTRY_POINT)
+    for env_id, entry_point in _ENTRY_POINTS.items():
+        if env_id not in registration.registry:
+            registration.register(id=env_id, entry_point=entry_point)
 
 
 class _RegisterWhenGymnasiumLoads(importlib.abc.MetaPathFinder):
-    """Registers ENV_ID right after Gymnasium's registry module first executes.
+    """Registers the ids right after Gymnasium's registry module first executes.
 
     Asked only for that one module name; it lets the normal finders locate the module and wraps
     the loader's ``exec_module`` so the registration follows it. It then leaves ``sys.meta_path``.
