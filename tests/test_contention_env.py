@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import warnings
+from pathlib import Path
 
 import gymnasium
 import numpy as np
@@ -252,3 +253,12 @@ def test_bad_actions_are_one_line_errors():
         with pytest.raises(ValueError, match="^action: expected an integer"):
             env.step(bad)
     env.close()
+
+
+def test_the_example_runs_an_outside_agent_beside_the_sweeps_methods():
+    example = Path(__file__).resolve().parents[1] / "examples" / "contention_env.py"
+    done = subprocess.run([sys.executable, str(example), "--requests", "300", "--users", "10"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    methods = [line.split()[0] for line in done.stdout.splitlines()[2:]]
+    assert methods == ["most-free-pair", "random", "MinLoad-2", "Tied", "Oracle"]
