@@ -262,3 +262,40 @@ def test_the_example_runs_an_outside_agent_beside_the_sweeps_methods():
     assert done.returncode == 0, done.stderr[-2000:]
     methods = [line.split()[0] for line in done.stdout.splitlines()[2:]]
     assert methods == ["most-free-pair", "random", "MinLoad-2", "Tied", "Oracle"]
+
+
+@pytest.mark.slow
+def test_safetail_ca_learning_through_the_environment_is_the_sweeps_run():
+    """The sweep's contention-aware SafeTail, trained through the environment (its choices as
+    actions, each completed record as its feedback), learns and dispatches exactly as
+    ``run_policy`` trains it: feedback reaches it in the same order between its choices."""
+    from yafs_safetail.methods.registry import SAFETAIL
+    from yafs_safetail.methods.safetail.learner import SafeTailLearner
+    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+    from yafs_safetail.methods.safetail.presets import get_preset
+    from yafs_safetail.methods.safetail.spaces import StateScales
+    from yafs_safetail.runs.workers import method_rng
+
+    settings = {"users": 20, "load": 0.5, "n_requests": 600, "block_requests": 200, "queue": True,
+                "background": False, "phase": "train"}
+
+    def safetail_ca(seed: int) -> SafeTailPolicy:
+        config = dataclasses.replace(get_preset("tuned", 1, train_steps=600), objective="value")
+        learner = SafeTailLearner(5, state_dim(5, 0, 2), config, seed, metadata={})
+        return SafeTailPolicy(5, method_rng(seed, SAFETAIL), learner=learner, scales=StateScales.for_use_case(1),
+                              training=True, reward_name="latency-cost", dispatch="tied")
+
+    expected = run_policy(ContentionWorld(ContentionConfig(seed=2, **settings)), safetail_ca(2))
+    policy = safetail_ca(2)
+    env = make(dispatch="tied", reward="latency-cost", **settings)
+    _, info = env.reset(seed=2)
+    latency_s: dict[int, float] = {}
+    truncated = False
+    while not truncated:
+        *_, truncated, info_after = env.step(action_of(policy.choose(info["observation"]), 5))
+        for record in info_after["completed"]:
+            assert policy.feedback(record).reward == pytest.approx(record.reward, abs=1e-12)
+            latency_s[record.step] = record.latency_s
+        info = info_after
+    assert policy.learner.n_training_rounds > 0  # it learnt on the way
+    np.testing.assert_array_equal([latency_s[j] for j in range(600)], expected.result.latency_s)
