@@ -54,7 +54,8 @@ Spaces and signals:
   row for the agent).
 
 ``info`` also carries ``observation`` (the :class:`~yafs_safetail.edge.observation.Observation`
-of the request to dispatch, for policies written against it) and ``request`` (its index).
+of the request to dispatch, for policies written against it) and ``request`` (its index). After
+a run's last request there is none to dispatch: that step repeats the last one's observation.
 """
 
 from __future__ import annotations
