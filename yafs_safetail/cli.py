@@ -247,6 +247,7 @@ SCRIPT_COMMANDS = {
     "learning-rate": ("choose_learning_rate", "choose the paper preset's learning rates by the rule"),
     "compare": ("compare_runs", "two results folders side by side, B / A with intervals"),
     "sweep": ("load_sweep", "many users: every method against the offered load"),
+    "mechanism": ("training_mechanism", "many users: each SafeTail's copies and queues over its training"),
 }
 USAGE = ("usage: yafs-safetail {" + ",".join([*SCRIPT_COMMANDS, "figures"])
          + "} [options]   (each takes --help)")

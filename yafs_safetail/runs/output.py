@@ -37,6 +37,8 @@ RUN_FILE = "run.json"
 REQUESTS_FILE = "requests.csv"
 #: A load sweep's table (experiments/load_sweep.py), which it writes instead of requests.csv.
 SWEEP_FILE = "sweep.csv"
+#: experiments/training_mechanism.py's table.
+MECHANISM_FILE = "mechanism.csv"
 
 
 #: What a write into a full file system (or a full quota) fails with.
@@ -49,13 +51,15 @@ class OutputError(ValueError):
 
 def is_results_folder(folder: Path) -> bool:
     """True for a finished results folder of this tool: ``run.json`` naming the package
-    version, beside ``requests.csv`` (or a load sweep's ``sweep.csv``)."""
+    version, beside ``requests.csv`` (or a load sweep's ``sweep.csv``, or a training
+    mechanism's ``mechanism.csv``)."""
     try:
         run = json.loads((folder / RUN_FILE).read_text())
     except (OSError, ValueError):
         return False
     return isinstance(run, dict) and "package_version" in run and (
-        (folder / REQUESTS_FILE).is_file() or (folder / SWEEP_FILE).is_file())
+        (folder / REQUESTS_FILE).is_file() or (folder / SWEEP_FILE).is_file()
+        or (folder / MECHANISM_FILE).is_file())
 
 
 def refuse_protected(folder: Path, option: str = "--out") -> Path:

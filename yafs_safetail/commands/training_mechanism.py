@@ -1,0 +1,83 @@
+"""Why the paper's learner collapses under contention, measured over its training.
+
+    python experiments/training_mechanism.py --uc 1 --users 50 --loads 0.1,0.5,0.9 --seed 17 \\
+        --steps-scale 0.3 --out results/mechanism_uc1
+
+Trains each SafeTail of the load sweep at each load exactly as experiments/load_sweep.py does
+(same world, seeds and requests, so the trained policies are the sweep's) and records, per
+training request, the copies sent and the users active per server when it chose (the queue
+its copies join). Writes OUT/mechanism.csv (means per window of training: method, load,
+window, first_request, requests, mean_copies, mean_active_per_server, mean_latency_s,
+p99_latency_s), OUT/mechanism.png (copies and queue length against training progress, one
+line per load, one column per SafeTail) and OUT/run.json. See docs/contention.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    invocation,
+    non_negative_int,
+    positive_int,
+)
+
+#: Windows of training per load (contention.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).
+DEFAULT_WINDOWS = 20
+MECHANISM_KIND = "training_mechanism"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from yafs_safetail.contention.sweep import SweepConfig
+    from yafs_safetail.runs.config import add_options, config_from_args
+
+    parser = ArgumentParser(prog="training_mechanism.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--uc", type=int, choices=(1, 2, 3), default=1, help="use case (default 1)")
+    parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    # The load sweep's own settings, declared once in contention.sweep.SweepConfig.
+    add_options(parser, SweepConfig, only=("loads", "steps_scale", "preset", "reward", "target", "learners",
+                                           "value_networks", "dispatch"))
+    parser.add_argument("--windows", type=positive_int, default=DEFAULT_WINDOWS,
+                        help=f"windows of training per load (default {DEFAULT_WINDOWS})")
+    parser.add_argument("--out", type=Path, required=True, help="new output folder")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier mechanism folder there")
+    add_verbosity_options(parser)
+    args = parser.parse_args(argv)
+    configure_verbosity(args)
+
+    from yafs_safetail import __version__
+    from yafs_safetail.contention.mechanism import measure_training, mechanism_figure
+    from yafs_safetail.contention.world import ContentionConfig
+    from yafs_safetail.results.files import write_text_atomic
+    from yafs_safetail.runs.output import MECHANISM_FILE, StagedOutput
+
+    # The load sweep's world: the same defaults as experiments/load_sweep.py (queues, cancel on
+    # reply, shared links, no background tenants).
+    config: SweepConfig = config_from_args(
+        args, SweepConfig, base=ContentionConfig(use_case=args.uc, seed=args.seed, users=args.users,
+                                                 queue=True, cancel=True, background=False))
+    command = " ".join([*invocation("experiments/training_mechanism.py"),
+                        *(sys.argv[1:] if argv is None else argv)])
+    output = StagedOutput(args.out, args.overwrite)
+    with output as staging:
+        table = measure_training(config, args.windows, log=print)
+        write_text_atomic(staging / MECHANISM_FILE, table.to_csv(index=False, float_format="%.6g"))
+        mechanism_figure(table, staging / "mechanism.png")
+        write_text_atomic(staging / "run.json", json.dumps({
+            "package_version": __version__, "command": command, "kind": MECHANISM_KIND, "use_case": args.uc,
+            "users": args.users, "seed": args.seed, "loads": list(config.loads), "steps_scale": config.steps_scale,
+            "target": config.target, "windows": args.windows,
+            "safetails": [asdict(variant) for variant in config.safetails]}, indent=1) + "\n")
+        output.publish()
+    print(f"written: {Path(args.out) / MECHANISM_FILE}")
+    return 0
