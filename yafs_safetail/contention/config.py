@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from yafs_safetail.edge.energy import EnergyModel
+from yafs_safetail.edge.failures import FailureSettings
 from yafs_safetail.edge.sampling import phase_seed_sequence
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, EdgeScenario
 
@@ -61,6 +63,9 @@ class ContentionConfig:
             topology's link conditions for every user), ``"generated"`` (the topology's ±1 per
             user and server, drawn once from the seed, the same in every phase) or a JSON file
             ``{"users": [{"conditions": [c_0, ..., c_{n-1}]}, ...]}`` with one entry per user.
+        failures: when servers are down and how long a user waits for a reply (beyond the
+            paper; the default: no server ever fails and no time-out, the paper's world).
+        energy: the servers' and the devices' power models that price every copy.
     """
 
     use_case: int = 1
@@ -81,6 +86,8 @@ class ContentionConfig:
     traces_dir: Path | None = None
     block_requests: int = DEFAULT_BLOCK_REQUESTS
     user_conditions: str | Path = "topology"
+    failures: FailureSettings = FailureSettings()
+    energy: EnergyModel = EnergyModel()
 
 
 def check_contention_config(config: ContentionConfig) -> None:
@@ -102,6 +109,10 @@ def check_contention_config(config: ContentionConfig) -> None:
         if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
             name = "--rate-per-user" if by_rate else "--load"
             raise ContentionError(f"{name}: expected a positive number, got {value!r}")
+    if not isinstance(config.failures, FailureSettings):
+        raise ContentionError(f"failures: expected a FailureSettings, got {config.failures!r}")
+    if not isinstance(config.energy, EnergyModel):
+        raise ContentionError(f"energy: expected an EnergyModel, got {config.energy!r}")
 
 
 def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:

@@ -16,6 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from yafs_safetail.contention.engine import DISPATCH_MODES, EngineResult, RequestOutcome, run_engine
+from yafs_safetail.contention.types import (
+    END_ALL_LOST_CODE,
+    END_ALL_REFUSED_CODE,
+    END_REPLY_CODE,
+    END_TIMEOUT_CODE,
+)
 from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.policy import (
     DispatchSupport,
@@ -94,6 +100,11 @@ class PolicyDispatcher:
             propagation_s=2.0 * outcome.propagation_s,
             download_s=transfer_s,
             compute_s=outcome.server_s,
+            lost=outcome.lost,
+            end_reason=outcome.end_reason,
+            server_energy_j=outcome.server_energy_j,
+            radio_energy_j=outcome.radio_energy_j,
+            saved_energy_j=outcome.saved_energy_j,
         )
         self.policy.feedback(record)
 
@@ -128,6 +139,7 @@ def run_policy(world: ContentionWorld, policy: Policy, *, queue: bool | None = N
 SUMMARY_COLUMNS: tuple[str, ...] = (
     "method", "n_requests", "p50_s", "p90_s", "p95_s", "p99_s", "mean_s", "mean_n_selected",
     "fallback_rate", "refused_per_request", "cancelled_per_request", "server_s_per_request",
+    "success_rate", "energy_j_per_request", "share_all_lost", "share_timeout", "share_all_refused",
 )
 
 
@@ -135,12 +147,16 @@ def summarise(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> dict[
     """One row of :data:`SUMMARY_COLUMNS` over the requests after the warm-up.
 
     ``server_s_per_request`` is the server time copies ran, cancelled or not, per request: what
-    redundancy costs the servers.
+    redundancy costs the servers. ``success_rate`` is the share of requests a reply ended;
+    ``share_all_lost``, ``share_timeout`` and ``share_all_refused`` the shares that ended for
+    each other reason (``edge.failures.END_REASONS``); ``energy_j_per_request`` the mean of each
+    request's servers' and radio energy once all its copies settled.
     """
     result = run.result
     n = result.latency_s.shape[0]
     keep = slice(min(int(warmup_fraction * n), n - 1), n)
     latency = result.latency_s[keep]
+    end_reason = result.end_reason[keep]
     p50, p90, p95, p99 = np.percentile(latency, [50, 90, 95, 99]).tolist() if latency.size else [math.nan] * 4
     return {
         "method": run.method,
@@ -155,4 +171,9 @@ def summarise(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> dict[
         "refused_per_request": float(np.mean(result.refused[keep])),
         "cancelled_per_request": result.cancelled_copies / n,
         "server_s_per_request": result.busy_s / n,
+        "success_rate": float(np.mean(end_reason == END_REPLY_CODE)),
+        "energy_j_per_request": float(np.mean(result.energy_j[keep])),
+        "share_all_lost": float(np.mean(end_reason == END_ALL_LOST_CODE)),
+        "share_timeout": float(np.mean(end_reason == END_TIMEOUT_CODE)),
+        "share_all_refused": float(np.mean(end_reason == END_ALL_REFUSED_CODE)),
     }

@@ -19,6 +19,7 @@ import numpy as np
 from yafs_safetail.contention.state import (
     CANCELLED,
     DONE,
+    LOST,
     QUEUED,
     REFUSED,
     REPLYING,
@@ -31,7 +32,17 @@ from yafs_safetail.contention.state import (
     Transfer,
     outcome,
 )
-from yafs_safetail.contention.types import Dispatcher, EngineResult, EngineSettings, RequestBlock
+from yafs_safetail.contention.types import (
+    END_ALL_LOST_CODE,
+    END_ALL_REFUSED_CODE,
+    END_REPLY_CODE,
+    END_TIMEOUT_CODE,
+    Dispatcher,
+    EngineResult,
+    EngineSettings,
+    RequestBlock,
+)
+from yafs_safetail.edge.failures import END_REASONS
 
 #: A scheduled event: (time_s, sequence, handler, subject, version). The sequence number breaks
 #: ties in scheduling order, so the handler is never compared; ``handler(subject, version)`` runs
@@ -77,10 +88,24 @@ class Simulation:
         self.block = block
         self.block_index = -1
         self.tables: RequestBlock | None = None
+        self.timeout_s = settings.timeout_s
+        self.per_process_w = settings.per_process_w
+        self.radio_up_j_per_byte = settings.radio_up_j_per_byte
+        self.radio_down_j_per_byte = settings.radio_down_j_per_byte
+        self.radio_active_w = settings.radio_active_w
+        self.lost_copies = 0
+        result = self.result
+        result.end_reason = np.full(n_requests, END_REPLY_CODE, dtype=np.int8)
+        result.lost = np.zeros(n_requests, dtype=np.int64)
+        # Per-request energies as lists while the loop adds to them (faster than array items).
+        self.server_energy_j = [0.0] * n_requests
+        self.radio_energy_j = [0.0] * n_requests
+        self.saved_energy_j = [0.0] * n_requests
 
     def run(self) -> EngineResult:
         """Emit every request at its time and handle events in time order until none is left."""
         self.start_background()
+        self.schedule_outages()
         events = self.events
         pop = heapq.heappop
         emit_list = self.emit_list
@@ -102,6 +127,11 @@ class Simulation:
         result.busy_s = self.busy_s
         result.cancelled_copies = self.cancelled_copies
         result.end_s = self.now_s
+        result.server_energy_j = np.asarray(self.server_energy_j, dtype=float)
+        result.radio_energy_j = np.asarray(self.radio_energy_j, dtype=float)
+        result.saved_energy_j = np.asarray(self.saved_energy_j, dtype=float)
+        result.server_active_s = np.asarray([server.active_s for server in self.servers], dtype=float)
+        result.lost_copies = self.lost_copies
         return result
 
     def schedule(self, at_s: float, handler: Callable[[Any, int], None], subject: Any, version: int = 0) -> None:
@@ -125,18 +155,24 @@ class Simulation:
         # (Server.active_users inlined: this runs once per server per request.)
         chosen = list(self.dispatcher.choose(j, [s.own + s.waiting + s.background for s in self.servers]))
         request = Request(j, self.now_s)
+        if tables.input_bytes:
+            request.input_bytes = tables.input_bytes[row]
+            request.output_bytes = tables.output_bytes[row]
         if not self.hedged:
             for index in chosen:
                 self.send(request, index, tables, row)
-            return
-        self.send(request, chosen[0], tables, row)
-        if len(chosen) > 1:
-            request.unsent = [(index, tables, row) for index in chosen[1:]]
-            delay_s = self.dispatcher.hedge_delay_s()
-            # No timer for an infinite delay (the next copy then goes only if the first is
-            # refused): an event at infinity would poison the servers' clocks.
-            if delay_s < math.inf:
-                self.schedule(self.now_s + delay_s, self.on_hedge_timer, request)
+        else:
+            self.send(request, chosen[0], tables, row)
+            if len(chosen) > 1:
+                request.unsent = [(index, tables, row) for index in chosen[1:]]
+                delay_s = self.dispatcher.hedge_delay_s()
+                # No timer for an infinite delay (the next copy then goes only if the first is
+                # refused): an event at infinity would poison the servers' clocks.
+                if delay_s < math.inf:
+                    self.schedule(self.now_s + delay_s, self.on_hedge_timer, request)
+        # (No event without a time-out: with failures off the event order is the paper world's.)
+        if self.timeout_s < math.inf:
+            self.schedule(self.now_s + self.timeout_s, self.on_timeout, request)
 
     def send(self, request: Request, index: int, tables: RequestBlock, row: int) -> None:
         """One copy of ``request`` to server ``index``; ``tables``' entry ``row`` is the request."""
@@ -147,41 +183,114 @@ class Simulation:
         # The output's transfer term is read when the copy finishes computing.
         copy = Copy(request, server, tables.work_s[row][index], propagation_s,
                     tables.output_transfer_s[row][base:base + levels])
+        copy.sent_s = self.now_s
         request.copies.append(copy)
         self.n_copies[request.index] += 1
+        if server.is_down:
+            # The user does not know: its device sends the input (as if alone on the link), and
+            # nothing will ever answer.
+            input_s = tables.input_transfer_s[row][base + self.level_of(server.background)]
+            self.charge_upload(request, 1.0, 2.0 * input_s)
+            self.lose(copy)
+            return
         if self.shared_links:
             input_by_level = tables.input_transfer_s[row][base:base + levels]
             if any(input_by_level):
                 self.start_transfer(copy, server.down, input_by_level)
-                return
+                return  # its upload is charged when the transfer ends or stops
             input_s = 0.0  # nothing to send: the link is not used
         else:
             input_s = tables.input_transfer_s[row][base + self.level_of(server.active_users())]
             copy.input_s = input_s
+        # (At start, a transfer's time is fixed when it starts and nothing stops it.)
+        self.charge_upload(request, 1.0, 2.0 * input_s)
         self.schedule(self.now_s + 2.0 * input_s + propagation_s, self.on_arrival, copy)
 
     def send_cancel(self, copy: Copy) -> None:
         self.schedule(self.now_s + copy.propagation_s, self.on_cancel, copy)
+
+    def cancel_others(self, request: Request) -> None:
+        """Cancel every copy of ``request`` that may still compute or send (cancel semantics)."""
+        for other in request.copies:
+            # (A reply still on its up link is cancelled too.)
+            if other.state <= RUNNING or other.transfer is not None:
+                self.send_cancel(other)
 
     def send_next_hedge(self, request: Request) -> None:
         if request.unsent:
             index, tables, row = request.unsent.pop(0)
             self.send(request, index, tables, row)
 
-    def finish(self, request: Request, latency_s: float, copy: Copy | None) -> None:
-        """``request`` ends with ``latency_s``: ``copy``'s reply, or the fallback (None)."""
+    def finish(self, request: Request, latency_s: float, copy: Copy | None,
+               reason: int = END_REPLY_CODE) -> None:
+        """``request`` ends with ``latency_s``: ``copy``'s reply, or the fallback (None), for
+        ``reason`` (an index into ``END_REASONS``)."""
         j = request.index
         request.done = True
         result = self.result
         result.latency_s[j] = latency_s
         result.refused[j] = request.refused
+        if reason != END_REPLY_CODE:
+            result.end_reason[j] = reason
         if copy is None:
             result.fallback[j] = True
         else:
             result.winner[j] = copy.server.index
         if not self.wants_outcomes:
             return
-        self.dispatcher.completed(outcome(request, latency_s, copy))
+        self.dispatcher.completed(outcome(request, latency_s, copy, END_REASONS[reason],
+                                          self.energy_so_far(request)))
+
+    # --- failures and energy --------------------------------------------------------------------
+
+    def lose(self, copy: Copy) -> None:
+        """``copy`` is lost to its server's failure (nobody is told)."""
+        copy.state = LOST
+        request = copy.request
+        request.lost += 1
+        self.result.lost[request.index] += 1
+        self.lost_copies += 1
+
+    def lost_on_the_way(self, copy: Copy) -> bool:
+        """Whether ``copy``, not on a link now, was lost by a failure it has not met yet: its
+        server went down after it left the user (its input on the way), or, with at-start
+        links, before its reply had left the server."""
+        state = copy.state
+        if state == TRANSIT and copy.transfer is None:
+            return copy.server.went_down_within(copy.sent_s, self.now_s)
+        if state == REPLYING and not self.shared_links:
+            return copy.server.went_down_within(copy.end_s, min(self.now_s, copy.reply_left_s))
+        return False
+
+    def charge_upload(self, request: Request, fraction: float, transfer_s: float) -> None:
+        """The device sent ``fraction`` of the request's input over ``transfer_s``."""
+        self.radio_energy_j[request.index] += (self.radio_up_j_per_byte * fraction * request.input_bytes
+                                               + self.radio_active_w * transfer_s)
+
+    def charge_download(self, request: Request, fraction: float, transfer_s: float) -> None:
+        """The device received ``fraction`` of a reply over ``transfer_s``."""
+        self.radio_energy_j[request.index] += (self.radio_down_j_per_byte * fraction * request.output_bytes
+                                               + self.radio_active_w * transfer_s)
+
+    def stop_computing(self, copy: Copy) -> None:
+        """``copy`` stops running now (done, cancelled or lost): its server time and energy."""
+        ran_s = self.now_s - copy.start_s
+        self.busy_s += ran_s
+        self.server_energy_j[copy.request.index] += self.per_process_w * ran_s
+
+    def energy_so_far(self, request: Request) -> tuple[float, float, float]:
+        """The request's servers', radio and saved energy until now (running copies included)."""
+        j = request.index
+        running_s = sum(self.now_s - c.start_s for c in request.copies if c.state == RUNNING)
+        return (self.server_energy_j[j] + self.per_process_w * running_s, self.radio_energy_j[j],
+                self.saved_energy_j[j])
+
+    def schedule_outages(self) -> None:
+        for server, intervals in zip(self.servers, self.settings.outages, strict=False):
+            for down_s, up_s in intervals:
+                self.schedule(down_s, self.on_server_down, server)
+                if up_s < math.inf:
+                    self.schedule(up_s, self.on_server_up, server)
 
     # --- servers --------------------------------------------------------------------------------
 
@@ -190,7 +299,8 @@ class Simulation:
         server.own += 1
         copy.state = RUNNING
         copy.start_s = self.now_s
-        heapq.heappush(server.jobs, (server.virtual_s + copy.work_s, next(self.sequence), copy))
+        copy.finish_virtual_s = finish_virtual_s = server.virtual_s + copy.work_s
+        heapq.heappush(server.jobs, (finish_virtual_s, next(self.sequence), copy))
         request = copy.request
         if self.tied and not request.tied:
             # Only the first copy to start cancels its siblings; a sibling that starts before
@@ -224,11 +334,13 @@ class Simulation:
         if self.shared_links:
             if any(copy.output_by_level):
                 self.start_transfer(copy, server.up, copy.output_by_level)
-                return
+                return  # its download is charged when the transfer ends or stops
             output_s = 0.0
         else:
             output_s = copy.output_by_level[self.level_of(server.active_users())]
         copy.output_s = output_s
+        copy.reply_left_s = self.now_s + 2.0 * output_s
+        self.charge_download(copy.request, 1.0, 2.0 * output_s)
         self.schedule(self.now_s + 2.0 * output_s + copy.propagation_s, self.on_reply, copy)
 
     # --- links ----------------------------------------------------------------------------------
@@ -278,17 +390,21 @@ class Simulation:
             if copy.state != RUNNING:
                 continue
             server.own -= 1
-            self.busy_s += now_s - copy.start_s
+            self.stop_computing(copy)
             copy.state = REPLYING
             copy.end_s = now_s
             self.send_reply(copy)
         self.occupancy_changed(server)
 
     def on_arrival(self, copy: Copy, _: int) -> None:
-        """``copy`` reaches its server: it runs, waits or is refused."""
-        if copy.state == CANCELLED:
+        """``copy`` reaches its server: it runs, waits or is refused (or is lost)."""
+        state = copy.state
+        if state == CANCELLED or state == LOST:
             return
         server = copy.server
+        if server.is_down or server.went_down_within(copy.sent_s, self.now_s):
+            self.lose(copy)
+            return
         copy.arrive_s = self.now_s
         if server.own + server.background < server.slots and not (self.queue_when_full and server.waiting):
             server.advance(self.now_s)
@@ -307,10 +423,14 @@ class Simulation:
             if self.hedged and request.unsent:
                 self.send_next_hedge(request)
             elif all(c.state == REFUSED for c in request.copies) and not request.unsent:
-                self.finish(request, self.settings.fallback_latency_s, None)
+                self.finish(request, self.settings.fallback_latency_s, None, END_ALL_REFUSED_CODE)
 
     def on_reply(self, copy: Copy, _: int) -> None:
         """``copy``'s reply reaches the user: the first one ends its request."""
+        if copy.state == LOST or self.lost_on_the_way(copy):
+            if copy.state != LOST:
+                self.lose(copy)
+            return
         copy.state = DONE
         request = copy.request
         if request.done:
@@ -318,31 +438,44 @@ class Simulation:
         self.finish(request, self.now_s - request.emit_s, copy)
         request.unsent = None
         if self.settings.cancel:
-            for other in request.copies:
-                # (A reply still on its up link is cancelled too.)
-                if other.state <= RUNNING or other.transfer is not None:
-                    self.send_cancel(other)
+            self.cancel_others(request)
 
     def on_cancel(self, copy: Copy, _: int) -> None:
         """A cancel message reaches ``copy``'s server (or its transfer)."""
         state = copy.state
+        # A cancelled copy saves the compute it had left, at its server's one-job speed: all of
+        # its work if it had not started.
+        saved_j = self.per_process_w / copy.server.speed[1]
         if state == TRANSIT or (state == REPLYING and copy.transfer is not None):
             # Still being sent (its input, or its reply on the up link): the transfer stops.
-            if copy.transfer is not None:
-                self.leave_link(copy.transfer)
+            transfer = copy.transfer
+            if transfer is not None:
+                sent, transfer_s = transfer.sent_fraction(self.now_s), self.now_s - transfer.started_s
+                self.leave_link(transfer)
+                if transfer.link.is_up:
+                    self.charge_download(copy.request, sent, transfer_s)
+                else:
+                    self.charge_upload(copy.request, sent, transfer_s)
+            elif self.lost_on_the_way(copy):
+                self.lose(copy)  # its server failed after it left: the cancel finds nothing
+                return
             copy.state = CANCELLED
             self.cancelled_copies += 1
+            if state == TRANSIT:
+                self.saved_energy_j[copy.request.index] += saved_j * copy.work_s
         elif state == QUEUED:
             copy.state = CANCELLED
             copy.server.waiting -= 1
             self.cancelled_copies += 1
+            self.saved_energy_j[copy.request.index] += saved_j * copy.work_s
         elif state == RUNNING:
             server = copy.server
             server.advance(self.now_s)
             copy.state = CANCELLED
             server.own -= 1
-            self.busy_s += self.now_s - copy.start_s
+            self.stop_computing(copy)
             self.cancelled_copies += 1
+            self.saved_energy_j[copy.request.index] += saved_j * max(0.0, copy.finish_virtual_s - server.virtual_s)
             self.occupancy_changed(server)
 
     def on_transfer_end(self, transfer: Transfer, version: int) -> None:
@@ -350,18 +483,75 @@ class Simulation:
         copy = transfer.copy
         if version != transfer.version or copy.transfer is not transfer:
             return
-        term_s = 0.5 * (self.now_s - transfer.started_s)  # one of Eq. 1's two equal transfer terms
+        transfer_s = self.now_s - transfer.started_s
+        term_s = 0.5 * transfer_s  # one of Eq. 1's two equal transfer terms
         self.leave_link(transfer)
         if transfer.link.is_up:
             copy.output_s = term_s
+            self.charge_download(copy.request, 1.0, transfer_s)
             self.schedule(self.now_s + copy.propagation_s, self.on_reply, copy)
         else:
             copy.input_s = term_s
+            self.charge_upload(copy.request, 1.0, transfer_s)
             self.schedule(self.now_s + copy.propagation_s, self.on_arrival, copy)
 
     def on_hedge_timer(self, request: Request, _: int) -> None:
         if not request.done:
             self.send_next_hedge(request)
+
+    def on_timeout(self, request: Request, _: int) -> None:
+        """No reply within the time-out: the on-device fallback, after it."""
+        if request.done:
+            return
+        any_lost, all_lost = False, True
+        for copy in request.copies:
+            if copy.state == REFUSED:
+                continue
+            if copy.state != LOST and self.lost_on_the_way(copy):
+                self.lose(copy)
+            if copy.state == LOST:
+                any_lost = True
+            else:
+                all_lost = False
+        reason = END_ALL_LOST_CODE if any_lost and all_lost else END_TIMEOUT_CODE
+        self.finish(request, self.timeout_s + self.settings.fallback_latency_s, None, reason)
+        request.unsent = None
+        if self.settings.cancel:
+            self.cancel_others(request)
+
+    def on_server_down(self, server: Server, _version: int) -> None:
+        """``server`` fails: every copy on it or on its links is lost, its slots and links free."""
+        now_s = self.now_s
+        server.advance(now_s)
+        server.is_down = True
+        server.down_starts_s.append(now_s)
+        for *_, copy in server.jobs:
+            if copy.state == RUNNING:
+                server.own -= 1
+                self.stop_computing(copy)
+                self.lose(copy)
+        server.jobs.clear()
+        for copy in server.queue:
+            if copy.state == QUEUED:
+                server.waiting -= 1
+                self.lose(copy)
+        server.queue.clear()
+        for link in (server.down, server.up):
+            for transfer in link.transfers:
+                copy = transfer.copy
+                sent, transfer_s = transfer.sent_fraction(now_s), now_s - transfer.started_s
+                if link.is_up:
+                    self.charge_download(copy.request, sent, transfer_s)
+                else:
+                    self.charge_upload(copy.request, sent, transfer_s)
+                copy.transfer = None
+                self.lose(copy)
+            link.transfers.clear()
+        self.reschedule(server)  # nothing runs: its pending completion goes stale
+
+    def on_server_up(self, server: Server, _: int) -> None:
+        """``server`` is repaired: it serves the copies that reach it from now on."""
+        server.is_down = False
 
     def on_background_change(self, period: int, _: int) -> None:
         """Background tenants take period ``period``'s values."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -23,6 +24,7 @@ REPLYING = 3   # its reply on the up link, then ρ back
 DONE = 4       # its reply arrived
 CANCELLED = 5  # stopped by a cancel message (or never started)
 REFUSED = 6    # the server was full
+LOST = 7       # its server was down when it got there, or went down before its reply left
 
 
 @dataclass(slots=True, eq=False)
@@ -58,6 +60,10 @@ class Server:
         queue: copies waiting for a slot, first come first served.
         down: the link that carries inputs to it.
         up: the link that carries its replies.
+        active_s: ∫ own dt since the start (our copies computing), kept apart from the copies
+            so that their energy can be checked against it.
+        is_down: the server has failed and not come back yet.
+        down_starts_s: when it went down, in order (copies in flight check them).
     """
 
     index: int
@@ -73,6 +79,9 @@ class Server:
     queue: deque[Copy] = field(default_factory=deque)
     down: Link = field(init=False)
     up: Link = field(init=False)
+    active_s: float = 0.0
+    is_down: bool = False
+    down_starts_s: list[float] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.down = Link(self, False)
@@ -83,10 +92,21 @@ class Server:
         return self.own + self.waiting + self.background
 
     def advance(self, now_s: float) -> None:
-        """Bring the virtual time up to ``now_s`` at the current occupancy's speed."""
-        if self.own:
-            self.virtual_s += self.speed[self.own + self.background] * (now_s - self.virtual_at_s)
+        """Bring the virtual time (and ∫ own dt) up to ``now_s`` at the current occupancy."""
+        own = self.own
+        if own:
+            elapsed_s = now_s - self.virtual_at_s
+            self.virtual_s += self.speed[own + self.background] * elapsed_s
+            self.active_s += own * elapsed_s
         self.virtual_at_s = now_s
+
+    def went_down_within(self, start_s: float, end_s: float) -> bool:
+        """Whether it went down at some time in ``[start_s, end_s]``."""
+        starts = self.down_starts_s
+        if not starts or starts[-1] < start_s:
+            return False
+        index = bisect_left(starts, start_s)
+        return index < len(starts) and starts[index] <= end_s
 
     def next_end_s(self, now_s: float) -> float | None:
         """When its first running job ends at the current speed (None: nothing runs); stale
@@ -113,6 +133,9 @@ class Request:
         refused: copies refused so far.
         unsent: hedge only: the (server, block, row) of copies not sent yet, or None.
         tied: tied only: one of its copies has started running.
+        input_bytes: what each copy uploads from the device.
+        output_bytes: what each reply brings down to it.
+        lost: copies lost so far.
     """
 
     index: int
@@ -122,6 +145,9 @@ class Request:
     refused: int = 0
     unsent: list[tuple[int, RequestBlock, int]] | None = None
     tied: bool = False
+    input_bytes: float = 0.0
+    output_bytes: float = 0.0
+    lost: int = 0
 
 
 @dataclass(slots=True, eq=False)
@@ -141,6 +167,9 @@ class Copy:
         start_s: when it started running.
         end_s: when it finished running.
         transfer: the transfer it is in now (input or reply), or None.
+        sent_s: when it left the user.
+        finish_virtual_s: the server's virtual time at which its work is done (once running).
+        reply_left_s: when its reply has left the server's up link (``links="at-start"``).
     """
 
     request: Request
@@ -155,6 +184,9 @@ class Copy:
     start_s: float = 0.0
     end_s: float = 0.0
     transfer: Transfer | None = None
+    sent_s: float = 0.0
+    finish_virtual_s: float = 0.0
+    reply_left_s: float = 0.0
 
 
 @dataclass(slots=True, eq=False)
@@ -195,13 +227,22 @@ class Transfer:
         left = self.left
         return now_s + left * whole_s if left > 0.0 else now_s
 
+    def sent_fraction(self, now_s: float) -> float:
+        """The share of it sent by ``now_s`` (at its current pace), in [0, 1]."""
+        left = self.left - (now_s - self.since_s) / self.whole_s if self.whole_s > 0.0 else self.left
+        return min(1.0, max(0.0, 1.0 - left))
 
-def outcome(request: Request, latency_s: float, copy: Copy | None) -> RequestOutcome:
-    """How ``request`` ended: with ``copy``'s reply after ``latency_s``, or (None) the fallback."""
+
+def outcome(request: Request, latency_s: float, copy: Copy | None, end_reason: str,
+            energy_j: tuple[float, float, float]) -> RequestOutcome:
+    """How ``request`` ended: with ``copy``'s reply after ``latency_s``, or (None) the fallback,
+    for ``end_reason``; ``energy_j``: its servers', radio and saved energy until now."""
     sent = tuple(c.server.index for c in request.copies)
+    server_j, radio_j, saved_j = energy_j
     if copy is None:
         return RequestOutcome(request.index, request.emit_s, latency_s, sent, request.refused, True, -1,
-                              math.nan, math.nan, math.nan, math.nan)
+                              math.nan, math.nan, math.nan, math.nan, end_reason, request.lost,
+                              server_j, radio_j, saved_j)
     return RequestOutcome(request.index, request.emit_s, latency_s, sent, request.refused, False,
                           copy.server.index, copy.input_s, copy.output_s, copy.propagation_s,
-                          copy.end_s - copy.arrive_s)
+                          copy.end_s - copy.arrive_s, end_reason, request.lost, server_j, radio_j, saved_j)

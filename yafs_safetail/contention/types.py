@@ -5,10 +5,24 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+
+from yafs_safetail.edge.failures import (
+    END_ALL_LOST,
+    END_ALL_REFUSED,
+    END_REASONS,
+    END_REPLY,
+    END_TIMEOUT,
+)
+
+#: Why a request ended, as the engine stores it (an index into ``END_REASONS``).
+END_REPLY_CODE = END_REASONS.index(END_REPLY)
+END_ALL_REFUSED_CODE = END_REASONS.index(END_ALL_REFUSED)
+END_ALL_LOST_CODE = END_REASONS.index(END_ALL_LOST)
+END_TIMEOUT_CODE = END_REASONS.index(END_TIMEOUT)
 
 #: The dispatch modes the engine runs (the contention world's declaration): copies all at once,
 #: one then the next after a delay (hedged request), or all at once with the others cancelled
@@ -60,7 +74,8 @@ class RequestOutcome:
         latency_s: first reply minus emission, or the fallback latency.
         servers: the servers copies were sent to, in sending order.
         refused: copies refused (server full) before the request ended.
-        fallback: every copy was refused; the on-device version answered.
+        fallback: no reply ended it (every copy refused, or none answered within the time-out);
+            the on-device version answered.
         winner: the server of the first reply (-1 for a fallback).
         input_transfer_s: the winning copy's one-way input transfer term, as it happened (half
             the time its input took, on a shared link at whatever levels it met; NaN for a
@@ -68,6 +83,15 @@ class RequestOutcome:
         output_transfer_s: its output transfer term, likewise.
         propagation_s: its one-way propagation ρ.
         server_s: from its arrival at the server to its end of service (waiting + computing).
+        end_reason: why it ended, one of ``edge.failures.END_REASONS``.
+        lost: its copies lost to a failed server by the time it ended.
+        server_energy_j: the servers' marginal energy its copies had spent when it ended
+            (per-process power × each copy's time computing so far).
+        radio_energy_j: the device's radio energy of its uploads and downloads until it ended.
+        saved_energy_j: the server energy its cancelled copies had not spent, until it ended.
+
+    The energies are what had been spent when the request ended, the moment its feedback is
+    due; the engine's result arrays hold each request's totals once every copy has settled.
     """
 
     request: int
@@ -81,6 +105,16 @@ class RequestOutcome:
     output_transfer_s: float
     propagation_s: float
     server_s: float
+    end_reason: str = END_REPLY
+    lost: int = 0
+    server_energy_j: float = 0.0
+    radio_energy_j: float = 0.0
+    saved_energy_j: float = 0.0
+
+    @property
+    def energy_j(self) -> float:
+        """The servers' and the device's radio energy together."""
+        return self.server_energy_j + self.radio_energy_j
 
 
 @dataclass(frozen=True)
@@ -112,6 +146,10 @@ class RequestBlock:
         output_transfer_s: one of Eq. 1's two equal output transfer terms.
         propagation_s: ρ per [r][server], one way.
         work_s: the copy's service need per [r][server] (seconds at speed 1).
+        input_bytes: the request's input size per [r] (what the device uploads per copy);
+            empty: no radio energy is charged for the bytes.
+        output_bytes: the reply's size per [r] (what the device downloads per reply); empty
+            likewise.
     """
 
     first: int
@@ -119,6 +157,8 @@ class RequestBlock:
     output_transfer_s: list[list[float]]
     propagation_s: list[list[float]]
     work_s: list[list[float]]
+    input_bytes: list[float] = field(default_factory=list)
+    output_bytes: list[float] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -138,6 +178,17 @@ class EngineSettings:
         fallback_latency_s: a request whose copies were all refused ends with this latency.
         background_period_s: background tenants change every this many seconds.
         background: tenants per [period][server]; period p uses row p mod len (may be empty).
+        outages: per server, its ``(down_s, up_s)`` intervals, sorted and disjoint (empty: no
+            server ever fails). A copy on a server when it goes down (waiting, computing, its
+            input or its reply on the server's links, its input on the way) is lost; a copy
+            sent to a down server is lost at once. Nobody is told.
+        timeout_s: a request without a reply this long after its emission ends with the
+            fallback (latency: the time-out plus ``fallback_latency_s``); ``inf``: never.
+        per_process_w: a server's marginal power per copy computing (server energy).
+        radio_up_j_per_byte: the device's radio energy per byte uploaded (besides its
+            ``radio_active_w`` over the transfer's time).
+        radio_down_j_per_byte: likewise per byte downloaded.
+        radio_active_w: the device's radio power while any transfer of its is on the air.
     """
 
     servers: tuple[ServerSpec, ...]
@@ -148,6 +199,12 @@ class EngineSettings:
     shared_links: bool = True
     background_period_s: float = math.inf
     background: tuple[tuple[int, ...], ...] = ()
+    outages: tuple[tuple[tuple[float, float], ...], ...] = ()
+    timeout_s: float = math.inf
+    per_process_w: float = 0.0
+    radio_up_j_per_byte: float = 0.0
+    radio_down_j_per_byte: float = 0.0
+    radio_active_w: float = 0.0
 
 
 @dataclass
@@ -160,6 +217,14 @@ class EngineResult:
         cancelled_copies: copies cancelled before they finished (computing, or sending their
             reply on a shared up link).
         end_s: simulated time when the last event was processed.
+        end_reason: per request, why it ended (an index into ``edge.failures.END_REASONS``).
+        lost: per request, its copies lost to failed servers (all of them, after it ended too).
+        server_energy_j: per request, per-process power × the time each of its copies computed.
+        radio_energy_j: per request, the device's radio energy of every upload and download.
+        saved_energy_j: per request, the server energy its cancelled copies did not spend.
+        server_active_s: per server, ∫ (our copies computing) dt, accumulated apart from the
+            copies: × per-process power, the server's dynamic energy from our copies.
+        lost_copies: copies lost over the run.
     """
 
     emit_s: np.ndarray
@@ -171,6 +236,18 @@ class EngineResult:
     busy_s: float = 0.0
     cancelled_copies: int = 0
     end_s: float = 0.0
+    end_reason: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
+    lost: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    server_energy_j: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    radio_energy_j: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    saved_energy_j: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    server_active_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lost_copies: int = 0
+
+    @property
+    def energy_j(self) -> np.ndarray:
+        """Per request, the servers' and the device's radio energy together."""
+        return self.server_energy_j + self.radio_energy_j
 
 
 class EngineError(ValueError):

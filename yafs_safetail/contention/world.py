@@ -25,6 +25,13 @@ What changes from the paper's single-user world (``edge.world``), and what does 
   number of other users active at the server (ours and background) when the transfer starts.
 * **Background tenants.** The load trace's users, as in the single-user world, change every
   ``background_period_s`` (one trace row, 60 s); they hold slots and CPU share but send nothing.
+* **Failures** (beyond the paper, off by default). Each server's outages over the run
+  (``edge.failures.phase_down_intervals``, drawn from the phase's own ``"failures"`` stream, so no
+  other draw moves); a copy on a server that fails is lost and a request without a reply by its
+  time-out takes the on-device fallback (``edge.failures.effective_timeout_s`` of
+  :attr:`ContentionWorld.worst_case_copy_latency_s`).
+* **Energy.** Every copy's server energy (the per-process power × its time computing) and the
+  device's radio energy of its upload and of each reply it receives (``edge.energy``).
 
 Units: seconds, bytes, bits per second; rates in requests per second.
 """
@@ -49,7 +56,13 @@ from yafs_safetail.contention.config import (
 )
 from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
-from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
+from yafs_safetail.edge.failures import DownIntervals, effective_timeout_s, phase_down_intervals
+from yafs_safetail.edge.inputs import (
+    TraceInputs,
+    load_inputs,
+    load_scenario_for,
+    worst_case_copy_latency_s,
+)
 from yafs_safetail.edge.latency import target_latency_s
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_sequence, propagation
@@ -67,6 +80,9 @@ __all__ = [
 
 #: How often the background tenants change: one load-trace row (a minute).
 BACKGROUND_PERIOD_S = 60.0
+#: Outages are drawn up to the last emission plus this many time-outs: the requests' copies
+#: have settled by then (a copy still running later meets no new outage).
+FAILURE_HORIZON_TIMEOUTS = 10.0
 
 
 def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, max_jobs: int) -> tuple[float, ...]:
@@ -177,7 +193,48 @@ class ContentionWorld:
             fallback_latency_s=self.fallback_latency_s,
             background_period_s=BACKGROUND_PERIOD_S,
             background=background,
+            outages=tuple(tuple(zip(starts, ends, strict=True)) for starts, ends in
+                          zip(self.down_intervals.starts_s, self.down_intervals.ends_s, strict=True)),
+            timeout_s=self.timeout_s,
+            per_process_w=config.energy.server.per_process_w,
+            radio_up_j_per_byte=8.0 * config.energy.radio.alpha_up_w_per_bps,
+            radio_down_j_per_byte=8.0 * config.energy.radio.alpha_down_w_per_bps,
+            radio_active_w=config.energy.radio.beta_w,
         )
+
+    @cached_property
+    def worst_case_copy_latency_s(self) -> float:
+        """An upper bound on a live copy's latency when nothing else shares its server or links:
+        the edge world's bound (``edge.inputs.worst_case_copy_latency_s``: the slowest bandwidth,
+        longest RTT and slowest compute at up to the servers' largest capacity of processes, at
+        most the traced ones),
+        with the topology's link scales, stretched whole by the slowest server's IPT when it is
+        below the reference (its compute takes that much longer)."""
+        scales = link_scales(self.scenario)
+        bound_s = worst_case_copy_latency_s(
+            self.inputs, self.use_case, min(max(self.capacity), self.inputs.max_processes),
+            bandwidth_scale=min(float(scales.server_bandwidth.min()), scales.user_bandwidth),
+            extra_propagation_s=float(scales.server_extra_propagation_s.max()))
+        return bound_s / min(1.0, min(self.speed_factor))
+
+    @cached_property
+    def timeout_s(self) -> float:
+        """How long a user waits for a reply (``edge.failures.effective_timeout_s``): the
+        configured time-out, else with failures on the worst-case live copy's latency, else
+        never (``inf``)."""
+        return effective_timeout_s(self.config.failures, self.worst_case_copy_latency_s)
+
+    @cached_property
+    def down_intervals(self) -> DownIntervals:
+        """Each server's outages over the run, from the phase's own ``"failures"`` stream (no
+        draw with failures off)."""
+        failures = self.config.failures
+        if not failures.enabled:
+            return DownIntervals.none(self.n_servers)
+        last_emit_s = float(self.emit_s[-1]) if self.n_requests else 0.0
+        horizon_s = last_emit_s + FAILURE_HORIZON_TIMEOUTS * self.timeout_s
+        rng = np.random.default_rng(phase_seed_sequence(self.config.seed, f"{self.config.phase}:failures"))
+        return phase_down_intervals(failures, self.n_servers, horizon_s, rng)
 
     def _background_rows(self) -> tuple[tuple[int, ...], ...]:
         periods = int(self.emit_s[-1] // BACKGROUND_PERIOD_S) + 2 if self.n_requests else 1
@@ -251,6 +308,8 @@ class ContentionWorld:
             output_transfer_s=world.output_transfer_by_level_s.reshape(n, -1).tolist(),
             propagation_s=self._block_rtt_s.tolist(),
             work_s=world.compute_by_processes_s[:, :, 0].tolist(),
+            input_bytes=np.asarray(world.input_bytes, dtype=float).tolist(),
+            output_bytes=np.asarray(world.output_bytes, dtype=float).tolist(),
         )
 
     def observation(self, request: int, active_users: list[int]) -> Observation:
