@@ -194,3 +194,10 @@ def test_bad_failure_settings_are_one_line_errors():
         ContentionWorld(ContentionConfig(failures="often"))  # type: ignore[arg-type]
     with pytest.raises(ContentionError, match="energy"):
         ContentionWorld(ContentionConfig(energy=None))  # type: ignore[arg-type]
+
+
+def test_outages_without_a_time_out_are_refused():
+    from yafs_safetail.contention.engine import EngineError
+
+    with pytest.raises(EngineError, match="timeout_s"):
+        engine([[1.0, 1.0]], [0.0], [(0,)], (((0.5, 1.0),), ()), timeout_s=math.inf)

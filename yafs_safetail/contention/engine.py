@@ -69,10 +69,14 @@ def run_engine(
         dispatcher: the method.
 
     Raises:
-        EngineError: an unknown dispatch mode or emission times out of order.
+        EngineError: an unknown dispatch mode, emission times out of order, or outages without
+            a finite time-out (a request whose copies were all lost would never end).
     """
     if dispatcher.mode not in DISPATCH_MODES:
         raise EngineError(f"dispatch mode {dispatcher.mode!r}: expected one of {', '.join(DISPATCH_MODES)}")
+    if any(settings.outages) and not settings.timeout_s < np.inf:
+        raise EngineError("outages: servers fail but timeout_s is not finite (a request whose copies "
+                          "were all lost would never end)")
     emit = np.asarray(emit_s, dtype=float)
     if emit.shape[0] and np.any(np.diff(emit) < 0):
         raise EngineError("emission times must be non-decreasing")

@@ -402,7 +402,7 @@ class Simulation:
         if state == CANCELLED or state == LOST:
             return
         server = copy.server
-        if server.is_down or server.went_down_within(copy.sent_s, self.now_s):
+        if server.down_starts_s and (server.is_down or server.went_down_within(copy.sent_s, self.now_s)):
             self.lose(copy)
             return
         copy.arrive_s = self.now_s

@@ -222,7 +222,10 @@ class ContentionWorld:
         """How long a user waits for a reply (``edge.failures.effective_timeout_s``): the
         configured time-out, else with failures on the worst-case live copy's latency, else
         never (``inf``)."""
-        return effective_timeout_s(self.config.failures, self.worst_case_copy_latency_s)
+        failures = self.config.failures
+        # (The bound costs a compute-model pass; only the default time-out with failures uses it.)
+        needs_bound = failures.enabled and failures.timeout_s is None
+        return effective_timeout_s(failures, self.worst_case_copy_latency_s if needs_bound else math.inf)
 
     @cached_property
     def down_intervals(self) -> DownIntervals:
