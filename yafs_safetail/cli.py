@@ -248,6 +248,7 @@ SCRIPT_COMMANDS = {
     "compare": ("compare_runs", "two results folders side by side, B / A with intervals"),
     "sweep": ("load_sweep", "many users: every method against the offered load"),
     "mechanism": ("training_mechanism", "many users: each SafeTail's copies and queues over its training"),
+    "failure-sweep": ("failure_sweep", "servers that fail: success, p99 and energy per request"),
 }
 USAGE = ("usage: yafs-safetail {" + ",".join([*SCRIPT_COMMANDS, "figures"])
          + "} [options]   (each takes --help)")

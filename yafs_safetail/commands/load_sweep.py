@@ -30,9 +30,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -47,13 +48,13 @@ from yafs_safetail.cli import (
     non_negative_int,
     positive_int,
 )
-from yafs_safetail.contention.sweep import SweepConfig, load_point_specs
+from yafs_safetail.contention.sweep import ContentionSweep, SweepConfig, point_specs
 from yafs_safetail.contention.sweep_report import (
+    LOAD_REPORT,
     checks_markdown,
-    frame_markdown_table,
     glance_markdown,
-    plot_sweep,
     seeds_markdown,
+    write_table,
 )
 from yafs_safetail.contention.world import LINK_MODELS, ContentionConfig, ContentionError
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
@@ -74,72 +75,23 @@ SEEDS_FILE = "seeds.csv"
 #: run.json's kind: one seed's sweep, and the folder of several.
 SWEEP_KIND = "load_sweep"
 SEEDS_KIND = "load_sweep_seeds"
+#: The sweep's settings given as options beside the axis's (each declared once in
+#: contention.sweep), in the order --help lists them.
+LEARNER_OPTIONS = ("steps_scale", "test_requests_per_load", "preset", "reward", "target", "learners",
+                   "value_networks", "dispatch")
 
 
-def _is_sweep_folder(folder: Path, kind: str) -> bool:
-    """A folder this command made for ``kind`` (one seed or several): a campaign's state file,
-    and a sweep's run.json of that kind or nothing but the campaign's files and its load (or
-    seed) folders (so another campaign's folder or a results folder is never written into)."""
-    if not (folder / STATE_FILE).is_file():
-        return False
-    if not (folder / "run.json").exists():
-        # Interrupted before the table was assembled: only the campaign's files and run folders.
-        runs = ("seed-", ".seed-") if kind == SEEDS_KIND else ("load-", ".load-")
-        return all(item.name.startswith((*runs, "campaign.", ".campaign.")) for item in folder.iterdir())
-    try:
-        return json.loads((folder / "run.json").read_text()).get("kind") == kind
-    except (OSError, ValueError, AttributeError):
-        return False
+# ----------------------------------------------------------------------------- shared by the sweeps
 
 
-def _write_sweep(folder: Path, frame: pd.DataFrame, args: argparse.Namespace, config: SweepConfig,
-                 command: str, specs: Sequence[RunSpec]) -> None:
-    """One seed's sweep.csv, SWEEP.md, figures and run.json into ``folder``."""
-    seed = config.base.seed
-    _write_csv(folder / SWEEP_FILE, frame)
-    table = frame[["load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"]]
-    write_text_atomic(folder / "SWEEP.md",
-                      f"# Load sweep (use case {args.uc}, {args.users} users, {args.servers}, {args.links} links, seed {seed})\n\n"
-                      + _safetail_lines(config) + f"`{command}`\n\n" + glance_markdown(frame)
-                      + "\n## Every row\n\n" + frame_markdown_table(table)
-                      + "\n\n## Goals\n\n" + checks_markdown(frame))
-    plot_sweep(frame, folder)
-    write_text_atomic(folder / "run.json", json.dumps({
-        "package_version": __version__, "command": command, "kind": SWEEP_KIND,
-        "use_case": args.uc, "users": args.users, "loads": list(config.loads), "seed": seed,
-        "steps_scale": config.steps_scale, "target": config.target,
-        "safetails": [asdict(variant) for variant in config.safetails],
-        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background, "links": args.links,
-        "methods": list(config.methods), "test_requests": config.test_requests,
-        "topology": str(args.topology),
-        "placement": str(args.placement), "user_conditions": str(args.user_conditions),
-        "load_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}, indent=1) + "\n")
-
-
-def _write_csv(path: Path, frame: pd.DataFrame) -> None:
-    write_text_atomic(path, frame.to_csv(index=False, float_format="%.6g"))
-
-
-def _safetail_lines(config: SweepConfig) -> str:
-    """How each SafeTail of the sweep learns and sends, one line each (none: fixed methods only)."""
-    lines = [f"{variant.name}: {variant.describe()}, target `{config.target}`." for variant in config.safetails]
-    return "".join(f"{line}\n\n" for line in lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = ArgumentParser(prog="load_sweep.py", description=__doc__,
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_users_options(parser: argparse.ArgumentParser) -> None:
+    """--uc and --users, every sweep's first options."""
     parser.add_argument("--uc", type=int, choices=(1, 2, 3), default=1, help="use case (default 1)")
     parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
-    add_options(parser, SweepConfig, only=("loads",))
-    seeds = parser.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
-    seeds.add_argument("--seeds", type=distinct_int_list,
-                       help="several distinct seeds, comma-separated: a sweep per seed in OUT/seed-<S>/, "
-                            "compared in OUT/SEEDS.md")
-    # The sweep's own settings, each declared once in contention.sweep.SweepConfig.
-    add_options(parser, SweepConfig, only=("steps_scale", "test_requests_per_load", "preset", "reward", "target",
-                                           "learners", "value_networks", "dispatch"))
+
+
+def add_world_options(parser: argparse.ArgumentParser) -> None:
+    """How the contention world's servers, links and users behave (every sweep's)."""
     parser.add_argument("--servers", choices=("queue", "refuse"), default="queue",
                         help="a full server queues copies FIFO (default) or refuses them (the paper)")
     parser.add_argument("--no-cancel", action="store_true", help="let the other copies run to the end")
@@ -151,64 +103,158 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--user-conditions", default="topology",
                         help="each user's distance condition per server: topology (default), generated "
                              "(the topology's ±1 per user and server) or a JSON file (docs/contention.md)")
-    add_options(parser, SweepConfig, only=("methods", "safetail"))
+
+
+def add_output_options(parser: argparse.ArgumentParser, config_class: type[ContentionSweep]) -> None:
+    """The methods, the input files, where the sweep goes and how it runs (every sweep's last
+    options)."""
+    add_options(parser, config_class, only=("methods", "safetail"))
     parser.add_argument("--topology", type=Path, default=DEFAULT_TOPOLOGY, help="topology JSON")
     parser.add_argument("--placement", type=Path, default=DEFAULT_PLACEMENT, help="placement JSON")
     parser.add_argument("--out", type=Path, required=True, help="new output folder")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace load folders there that hold another configuration's results")
+                        help="replace point folders there that hold another configuration's results")
     add_engine_options(parser)
     add_verbosity_options(parser)
-    args = parser.parse_args(argv)
-    configure_verbosity(args)
+
+
+def contention_base(args: argparse.Namespace, seed: int) -> ContentionConfig:
+    """The contention world every point of a sweep shares, from the options."""
+    return ContentionConfig(use_case=args.uc, seed=seed, users=args.users, queue=args.servers == "queue",
+                            cancel=not args.no_cancel, background=args.background, links=args.links,
+                            topology=args.topology, placement=args.placement,
+                            user_conditions=args.user_conditions)
+
+
+def check_methods(args: argparse.Namespace) -> None:
+    """The methods' options that parsing alone cannot check, as a one-line ContentionError
+    before the sweep's configuration is built."""
     for name in args.methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
     if args.value_networks is not None and "value" not in args.learners:
         raise ContentionError(f"--value-networks {args.value_networks}: only with the value learner "
                               "(SafeTail-CA)")
-    seed_list = args.seeds if args.seeds is not None else (args.seed,)
-    several = args.seeds is not None
-    config: SweepConfig = config_from_args(
-        args, SweepConfig,
-        base=ContentionConfig(use_case=args.uc, seed=seed_list[0], users=args.users,
-                              queue=args.servers == "queue", cancel=not args.no_cancel,
-                              background=args.background, links=args.links, topology=args.topology,
-                              placement=args.placement, user_conditions=args.user_conditions))
-    # The seeds' sweeps differ in nothing else.
-    configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
+
+
+def check_test_requests(args: argparse.Namespace, config: ContentionSweep) -> None:
+    """Enough test requests per point for a p99 (a one-line ContentionError otherwise)."""
     if config.test_requests < 100:
         flag = "--test-requests" if args.test_requests_per_load is not None else f"--steps-scale {args.steps_scale}"
-        raise ContentionError(f"{flag}: {config.test_requests} test requests per load; "
+        raise ContentionError(f"{flag}: {config.test_requests} test requests per {config.axis.label}; "
                               "at least 100 are needed for a p99")
-    command = engine_free_command(invocation("experiments/load_sweep.py"), sys.argv[1:] if argv is None else argv)
-    out = Path(args.out)
-    kind = SEEDS_KIND if several else SWEEP_KIND
-    if out.exists() and any(out.iterdir()) and not _is_sweep_folder(out, kind):
-        what = "a multi-seed load sweep" if several else "a load sweep"
+
+
+def is_sweep_folder(folder: Path, kind: str, runs: tuple[str, ...]) -> bool:
+    """A folder a sweep command made for ``kind``: a campaign's state file, and a sweep's
+    run.json of that kind or nothing but the campaign's files and its run folders (named with
+    one of ``runs``), so another campaign's folder or a results folder is never written into."""
+    if not (folder / STATE_FILE).is_file():
+        return False
+    if not (folder / "run.json").exists():
+        # Interrupted before the table was assembled: only the campaign's files and run folders.
+        return all(item.name.startswith((*runs, "campaign.", ".campaign.")) for item in folder.iterdir())
+    try:
+        return json.loads((folder / "run.json").read_text()).get("kind") == kind
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def check_out(out: Path, kind: str, runs: tuple[str, ...], what: str) -> None:
+    """``--out`` is new, empty, or this kind of sweep's folder (``what`` names it in the error)."""
+    if out.exists() and any(out.iterdir()) and not is_sweep_folder(out, kind, runs):
         raise ContentionError(f"--out {out}: exists and is not {what}'s folder; give a new folder")
-    # Each load of each seed is one campaign run (cached by its configuration's hash,
-    # resumable, on any engine); the tables are assembled from their folders.
-    folders = {seed: f"seed-{seed}/" if several else "" for seed in seed_list}
-    specs = {seed: [replace(spec, name=folders[seed] + spec.name) for spec in load_point_specs(configs[seed])]
-             for seed in seed_list}
-    result = run_campaign([spec for seed in seed_list for spec in specs[seed]], out, engine=args.engine,
+
+
+def run_points(out: Path, specs: Mapping[int, Sequence[RunSpec]], args: argparse.Namespace,
+               command: str) -> dict[int, pd.DataFrame] | None:
+    """Every point of every seed's sweep as one campaign into ``out`` (each point cached by its
+    configuration's hash, resumable, on any engine); each seed's rows read back from its points'
+    folders, in point order. None when a point failed (the campaign has said which)."""
+    result = run_campaign([spec for seed_specs in specs.values() for spec in seed_specs], out, engine=args.engine,
                           workers=args.workers, ray_address=args.ray_address, command=command,
                           overwrite=args.overwrite)
     if result.failed:
+        return None
+    return {seed: pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in seed_specs], ignore_index=True)
+            for seed, seed_specs in specs.items()}
+
+
+def sweep_run_json(args: argparse.Namespace, config: ContentionSweep, command: str, kind: str,
+                   specs: Sequence[RunSpec], **axis: Any) -> dict[str, Any]:
+    """A sweep folder's run.json: the command, the axis's settings (``axis``, in order after the
+    use case and users), the world's and the methods', and each point's run id."""
+    return {
+        "package_version": __version__, "command": command, "kind": kind,
+        "use_case": args.uc, "users": args.users, **axis, "seed": config.base.seed,
+        "steps_scale": config.steps_scale, "target": config.target,
+        "safetails": [asdict(variant) for variant in config.safetails],
+        "servers": args.servers, "cancel": not args.no_cancel, "background": args.background, "links": args.links,
+        "methods": list(config.methods), "test_requests": config.test_requests,
+        "topology": str(args.topology),
+        "placement": str(args.placement), "user_conditions": str(args.user_conditions),
+        f"{config.axis.folder}_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}
+
+
+def safetail_lines(config: ContentionSweep) -> str:
+    """How each SafeTail of the sweep learns and sends, one line each (none: fixed methods only)."""
+    lines = [f"{variant.name}: {variant.describe()}, target `{config.target}`." for variant in config.safetails]
+    return "".join(f"{line}\n\n" for line in lines)
+
+
+# ----------------------------------------------------------------------------- the load sweep
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog="load_sweep.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_users_options(parser)
+    add_options(parser, SweepConfig, only=("loads",))
+    seeds = parser.add_mutually_exclusive_group()
+    seeds.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    seeds.add_argument("--seeds", type=distinct_int_list,
+                       help="several distinct seeds, comma-separated: a sweep per seed in OUT/seed-<S>/, "
+                            "compared in OUT/SEEDS.md")
+    # The sweep's own settings, each declared once in contention.sweep.SweepConfig.
+    add_options(parser, SweepConfig, only=LEARNER_OPTIONS)
+    add_world_options(parser)
+    add_output_options(parser, SweepConfig)
+    args = parser.parse_args(argv)
+    configure_verbosity(args)
+    check_methods(args)
+    seed_list = args.seeds if args.seeds is not None else (args.seed,)
+    several = args.seeds is not None
+    config: SweepConfig = config_from_args(args, SweepConfig, base=contention_base(args, seed_list[0]))
+    check_test_requests(args, config)
+    # The seeds' sweeps differ in nothing else.
+    configs = {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
+    command = engine_free_command(invocation("experiments/load_sweep.py"), sys.argv[1:] if argv is None else argv)
+    out = Path(args.out)
+    if several:
+        check_out(out, SEEDS_KIND, ("seed-", ".seed-"), "a multi-seed load sweep")
+    else:
+        check_out(out, SWEEP_KIND, ("load-", ".load-"), "a load sweep")
+    # Each load of each seed is one campaign run; the tables are assembled from their folders.
+    folders = {seed: f"seed-{seed}/" if several else "" for seed in seed_list}
+    specs = {seed: [replace(spec, name=folders[seed] + spec.name) for spec in point_specs(configs[seed])]
+             for seed in seed_list}
+    frames = run_points(out, specs, args, command)
+    if frames is None:
         return 1
-    frames = {}
     for seed in seed_list:
-        frames[seed] = pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in specs[seed]],
-                                 ignore_index=True)
-        _write_sweep(out / folders[seed], frames[seed], args, configs[seed], command, specs[seed])
+        heading = (f"Load sweep (use case {args.uc}, {args.users} users, {args.servers}, {args.links} links, "
+                   f"seed {seed})")
+        LOAD_REPORT.write(out / folders[seed], frames[seed], heading,
+                          safetail_lines(configs[seed]) + f"`{command}`\n\n",
+                          sweep_run_json(args, configs[seed], command, SWEEP_KIND, specs[seed],
+                                         loads=list(config.loads)))
     if several:
         rows = pd.concat([frame.assign(seed=seed) for seed, frame in frames.items()], ignore_index=True)
-        _write_csv(out / SEEDS_FILE, rows[["seed", *frames[seed_list[0]].columns]])
+        write_table(out / SEEDS_FILE, rows[["seed", *frames[seed_list[0]].columns]])
         comparison = seeds_markdown(frames)
         write_text_atomic(out / "SEEDS.md",
                           f"# Load sweep over {len(seed_list)} seeds (use case {args.uc}, {args.users} users, "
                           f"{args.servers}, {args.links} links, seeds {', '.join(map(str, seed_list))})\n\n"
-                          + _safetail_lines(config) + f"`{command}`\n\n" + comparison)
+                          + safetail_lines(config) + f"`{command}`\n\n" + comparison)
         write_text_atomic(out / "run.json", json.dumps({
             "package_version": __version__, "command": command, "kind": SEEDS_KIND, "seeds": list(seed_list),
             "seed_folders": {str(seed): f"seed-{seed}" for seed in seed_list}}, indent=1) + "\n")
@@ -220,4 +266,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(checks_markdown(frame))
     print(f"written: {out / SWEEP_FILE}")
     return 0
-

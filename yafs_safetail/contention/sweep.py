@@ -1,13 +1,19 @@
-"""The load sweep: every method at every offered load, in the contention world.
+"""The contention world's sweeps: every method at every point of one axis.
 
-For each load: a training world and a test world (independent streams, same users and
-settings); each SafeTail learns on the training world at that load and is tested greedily;
+Two axes share one loop (:func:`run_sweep`), one campaign path (each point a campaign run:
+:func:`point_specs`, :func:`run_sweep_point`) and one table per point: the **load sweep**
+(:class:`SweepConfig`, the offered load rises) and the **failure sweep**
+(:class:`FailureSweepConfig`, each server's stationary probability of being down rises at a
+fixed load; issue 31).
+
+At each point: a training world and a test world (independent streams, same users and
+settings); each SafeTail learns on the training world at that point and is tested greedily;
 every other method runs on the test world only. By default two SafeTails run side by side
 (:data:`SAFETAIL_LEARNERS`): ``SafeTail``, the paper's learner (§III's target vector, Eq. 5
 against τ, copies sent all at once), and ``SafeTail-CA``, the contention-aware one (the value
 learner that prices each copy by the jobs it joins, tied copies; docs/deviations.md D13). All
-methods of a load see the same arrivals and per-request draws (common random numbers). One row
-per (load, method) goes to ``sweep.csv``.
+methods of a point see the same arrivals, per-request draws and outages (common random
+numbers). One row per (point, method) goes to the point's ``sweep.csv``.
 """
 
 from __future__ import annotations
@@ -16,16 +22,18 @@ import argparse
 import hashlib
 import json
 import logging
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import pandas as pd
 
 from yafs_safetail.cli import load_list
 from yafs_safetail.contention.run import SUMMARY_COLUMNS, TARGETS, run_policy, summarise
 from yafs_safetail.contention.world import ContentionConfig, ContentionError, ContentionWorld
+from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline
@@ -59,18 +67,55 @@ SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "value": SAFETAI
 #: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise:
 #: the paper's as the paper has it; the contention-aware one as it was chosen (D13).
 LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "value": ("tuned", "tied")}
-#: Every fixed method of the sweep (the SafeTails are added unless left out).
+#: Every fixed method of the load sweep (the SafeTails are added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
     "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
+)
+#: Every fixed method of the failure sweep: the x = 3 baselines too, since a third copy is what
+#: survives two servers down at once.
+DEFAULT_FAILURE_METHODS: tuple[str, ...] = (
+    "Oracle", "Rand-1", "Rand-2", "Rand-3", "MinLoad-1", "MinLoad-2", "MinLoad-3",
+    "MinProp-1", "MinProp-2", "MinProp-3", "Hedge", "Tied",
 )
 #: How many networks the value learner averages unless told (``SweepConfig.value_networks``):
 #: chosen on seeds 0-6 over one network, then judged on seeds 19-30 (docs/deviations.md D13).
 DEFAULT_VALUE_NETWORKS = 3
-#: Test requests per load at steps scale 1.
+#: Test requests per point (load or failure level) at steps scale 1.
 TEST_REQUESTS = 20_000
-#: sweep.csv's columns, in order.
+#: What every point's table ends with: each method's figures and its training budget.
 #: (No wall times: the same seed must give the same file.)
-SWEEP_COLUMNS: tuple[str, ...] = ("load", "offered_load", *SUMMARY_COLUMNS, "train_requests")
+_ROW_COLUMNS: tuple[str, ...] = (*SUMMARY_COLUMNS, "train_requests")
+#: The load sweep's sweep.csv columns, in order.
+SWEEP_COLUMNS: tuple[str, ...] = ("load", "offered_load", *_ROW_COLUMNS)
+#: The failure sweep's columns, in order (failure_sweep.csv, and each level's sweep.csv).
+FAILURE_SWEEP_COLUMNS: tuple[str, ...] = ("failure_level", "load", "offered_load", *_ROW_COLUMNS)
+#: The failure sweep's offered load unless told: the load sweep's lowest, the one load at which
+#: Oracle's five copies per request leave its queues stable (they grow without bound from 0.3 on,
+#: docs/contention.md), so that a lost request measures failures, not Oracle's own overload.
+DEFAULT_FAILURE_LOAD = 0.1
+
+
+@dataclass(frozen=True)
+class SweepAxis:
+    """What a sweep varies from one point to the next.
+
+    Attributes:
+        column: the table's column holding each point's value.
+        label: the logs' name for it (``load 0.5: ...``).
+        folder: each point's folder prefix (``<folder>-<value>``).
+        kind: each point's campaign run kind (``runs.engines.RUN_KINDS``).
+    """
+
+    column: str
+    label: str
+    folder: str
+    kind: str
+
+
+LOAD_POINT = "load_point"
+FAILURE_POINT = "failure_point"
+LOAD_AXIS = SweepAxis("load", "load", "load", LOAD_POINT)
+FAILURE_AXIS = SweepAxis("failure_level", "failure level", "level", FAILURE_POINT)
 
 
 def _method_names(text: str) -> tuple[str, ...]:
@@ -81,6 +126,8 @@ def _method_names(text: str) -> tuple[str, ...]:
 #: The methods a sweep may be given (any baseline name; checked when the policies are built).
 METHOD_NAMES = Check("comma-separated method names",
                      lambda v: isinstance(v, tuple) and all(isinstance(m, str) for m in v), _method_names)
+
+
 def _learner_names(text: str) -> tuple[str, ...]:
     """``--learner``: one or both of OBJECTIVES, comma-separated, in the order given."""
     names = tuple(name.strip() for name in text.split(",") if name.strip())
@@ -97,9 +144,49 @@ LOADS = Check("distinct loads in (0, 10)", lambda v: isinstance(v, tuple) and le
     not isinstance(x, bool) and isinstance(x, float | int) and 0 < x < 10 for x in v), load_list)
 
 
+def _is_load(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, float | int) and 0 < value < 10
+
+
+def _one_load(text: str) -> float:
+    """``--load``: one offered load in (0, 10)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not _is_load(value):
+        raise argparse.ArgumentTypeError(f"expected a load in (0, 10), got {text!r}")
+    return value
+
+
+#: The failure sweep's one offered load.
+ONE_LOAD = Check("a load in (0, 10)", _is_load, _one_load)
+
+
+def _is_failure_level(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, float | int) and 0 <= value < 1
+
+
+def failure_level_list(text: str) -> tuple[float, ...]:
+    """``--failure-levels``: distinct per-server down probabilities in [0, 1), comma-separated,
+    returned ascending (the sweep's points rise)."""
+    try:
+        levels = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if not levels or not all(_is_failure_level(level) for level in levels) or len(set(levels)) != len(levels):
+        raise argparse.ArgumentTypeError(f"expected distinct probabilities in [0, 1), got {text!r}")
+    return tuple(sorted(levels))
+
+
+#: Failure levels: distinct stationary down probabilities in [0, 1).
+FAILURE_LEVELS = Check("distinct probabilities in [0, 1)", lambda v: isinstance(v, tuple) and bool(v) and len(
+    set(v)) == len(v) and all(_is_failure_level(x) for x in v), failure_level_list)
+
+
 @dataclass(frozen=True)
 class SafeTailVariant:
-    """One SafeTail of a sweep, resolved from :class:`SweepConfig`.
+    """One SafeTail of a sweep, resolved from the sweep's configuration.
 
     Attributes:
         name: its rows' method name (``SafeTail`` or ``SafeTail-CA``).
@@ -108,7 +195,7 @@ class SafeTailVariant:
         dispatch: how its subset is sent (all at once or tied).
         reward: the reward it is trained with (the value learner's own ``latency-cost``).
         n_networks: how many networks' predictions it averages.
-        train_requests: its training requests per load.
+        train_requests: its training requests per point.
     """
 
     name: str
@@ -120,33 +207,34 @@ class SafeTailVariant:
     train_requests: int
 
     def describe(self) -> str:
-        """One line for SWEEP.md: how this SafeTail learns and sends."""
+        """One line for the sweep's report: how this SafeTail learns and sends."""
         networks = f" ({self.n_networks} networks averaged)" if self.n_networks > 1 else ""
         return (f"preset `{self.preset}`, learner `{self.learner}`{networks}, reward `{self.reward}`, "
                 f"dispatch `{self.dispatch}`")
 
 
 @dataclass(frozen=True)
-class SweepConfig:
-    """A load sweep: the contention world of every load (``base``; its ``load``, ``phase`` and
-    ``n_requests`` are set per load and phase) and the sweep's own settings, each declared once
-    with its help (``runs.config.setting``; ``experiments/load_sweep.py`` derives its options
-    from them). ``learners`` names the SafeTails it trains (:attr:`safetails` resolves each one's
-    preset, dispatch and reward). The value learner has its own reward (``"latency-cost"``), so
-    ``reward`` is the paper learner's and stays ``"paper"`` when the value learner runs alone
-    (docs/deviations.md D13)."""
+class ContentionSweep:
+    """What every sweep shares: the contention world of every point (``base``; what the axis
+    varies, ``phase`` and ``n_requests`` are set per point and phase) and the methods and
+    SafeTails it runs, each field declared once with its help (``runs.config.setting``; the
+    sweep commands derive their options from them). ``learners`` names the SafeTails it trains
+    (:attr:`safetails` resolves each one's preset, dispatch and reward). The value learner has
+    its own reward (``"latency-cost"``), so ``reward`` is the paper learner's and stays
+    ``"paper"`` when the value learner runs alone (docs/deviations.md D13).
+
+    A sweep is one of the subclasses, which say what the axis is (:attr:`axis`, :attr:`points`)
+    and what each point's world is (:meth:`point_world`)."""
 
     base: ContentionConfig
-    loads: tuple[float, ...] = setting((0.1, 0.3, 0.5, 0.7, 0.9),
-                                       "offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)",
-                                       check=LOADS)
     methods: tuple[str, ...] = setting(DEFAULT_SWEEP_METHODS, "fixed methods, comma-separated (default: all)",
                                        check=METHOD_NAMES)
     safetail: bool = setting(True, "fixed methods only", check=BOOLEAN, flag="--no-safetail",
                              action="store_false")
     preset: str | None = setting(None, "every SafeTail's preset (default: paper for SafeTail, tuned for "
                                  "SafeTail-CA)", check=one_of(PRESET_NAMES), optional=True)
-    steps_scale: float = setting(1.0, "scales SafeTail's training requests and the 20,000 test requests per load",
+    steps_scale: float = setting(1.0, "scales SafeTail's training requests and the 20,000 test requests per sweep point "
+                                 "(load or failure level)",
                                  check=POSITIVE_NUMBER)
     reward: str = setting("paper", "the paper learner's reward: Eq. 5 (default) or Eq. 5 without case 3's free "
                           "miss with all servers (docs/contention.md); SafeTail-CA has its own",
@@ -163,11 +251,15 @@ class SweepConfig:
         "(cancelled once one copy starts running, as Tied; with the value learner at least two copies; "
         "SafeTail-CA's default)", check=one_of(SAFETAIL_DISPATCH), flag="--safetail-dispatch", optional=True)
     test_requests_per_load: int | None = setting(
-        None, "test requests per load (default 20,000 × --steps-scale): more decide each p99 more closely",
+        None, "test requests per sweep point (default 20,000 × --steps-scale): more decide each p99 more "
+        "closely",
         check=POSITIVE_INTEGER, flag="--test-requests", optional=True)
     value_networks: int | None = setting(
         None, "how many networks' predictions SafeTail-CA (the value learner) averages "
         f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)", check=POSITIVE_INTEGER, optional=True)
+
+    #: What the sweep varies (each subclass's).
+    axis: ClassVar[SweepAxis]
 
     def __post_init__(self) -> None:
         n_test = self.test_requests_per_load
@@ -216,6 +308,162 @@ class SweepConfig:
             return self.test_requests_per_load
         return scaled_steps(TEST_REQUESTS, self.steps_scale)
 
+    # ------------------------------------------------------------------ what each sweep says
+
+    @property
+    def points(self) -> tuple[float, ...]:
+        """The axis's values, ascending."""
+        raise NotImplementedError
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The table's columns, in order."""
+        raise NotImplementedError
+
+    def point_world(self, value: float) -> ContentionConfig:
+        """The test world at ``value`` (the training world: the same with phase ``"train"``)."""
+        raise NotImplementedError
+
+    def point_columns(self, value: float, world: ContentionWorld) -> dict[str, Any]:
+        """The columns each row of the point ``value`` starts with (its world ``world``)."""
+        raise NotImplementedError
+
+    def point_settings(self, value: float) -> dict[str, Any]:
+        """One point of the sweep as a campaign run's settings (JSON values, paths absolute)."""
+        base = self.base
+        conditions = base.user_conditions
+        if conditions not in ("topology", "generated"):
+            conditions = str(Path(conditions).resolve())
+        return {
+            "use_case": base.use_case, "users": base.users, "load": base.load, "seed": base.seed,
+            "queue": base.queue, "cancel": base.cancel, "background": base.background, "world": base.world,
+            "links": base.links,
+            "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
+            "user_conditions": conditions, "methods": list(self.methods), "safetail": self.safetail,
+            "preset": self.preset, "steps_scale": self.steps_scale, "reward": self.reward,
+            "target": self.target, "learner": list(self.learners), "dispatch": self.dispatch,
+            "test_requests": self.test_requests, "value_networks": self.n_value_networks,
+        }
+
+    @staticmethod
+    def _shared_from_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+        """The fields :meth:`point_settings` records, back from them (every sweep's)."""
+        base = ContentionConfig(
+            use_case=settings["use_case"], users=settings["users"], seed=settings["seed"],
+            queue=settings["queue"], cancel=settings["cancel"], background=settings["background"],
+            # Absent from the folders of earlier versions, whose links were read at the start.
+            links=settings.get("links", "at-start"), world=settings["world"],
+            topology=Path(settings["topology"]), placement=Path(settings["placement"]),
+            user_conditions=settings["user_conditions"])
+        # One learner's name in the folders of earlier versions, which trained one SafeTail.
+        learners = settings["learner"]
+        return dict(base=base, methods=tuple(settings["methods"]), safetail=settings["safetail"],
+                    preset=settings["preset"], steps_scale=settings["steps_scale"], reward=settings["reward"],
+                    target=settings["target"],
+                    learners=(learners,) if isinstance(learners, str) else tuple(learners),
+                    dispatch=settings["dispatch"],
+                    # Absent from the folders of earlier versions, where it followed steps_scale.
+                    test_requests_per_load=settings.get("test_requests"),
+                    value_networks=settings.get("value_networks", 1))
+
+
+@dataclass(frozen=True)
+class SweepConfig(ContentionSweep):
+    """A load sweep: every method at each offered load in ``loads`` (``experiments/load_sweep.py``)."""
+
+    loads: tuple[float, ...] = setting((0.1, 0.3, 0.5, 0.7, 0.9),
+                                       "offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)",
+                                       check=LOADS)
+
+    axis: ClassVar[SweepAxis] = LOAD_AXIS
+
+    @property
+    def points(self) -> tuple[float, ...]:
+        return self.loads
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        return SWEEP_COLUMNS
+
+    def point_world(self, value: float) -> ContentionConfig:
+        return replace(self.base, load=value, rate_per_user_hz=None, phase="test", n_requests=self.test_requests)
+
+    def point_columns(self, value: float, world: ContentionWorld) -> dict[str, Any]:
+        return {"load": value, "offered_load": world.offered_load()}
+
+    def point_settings(self, value: float) -> dict[str, Any]:
+        return {**super().point_settings(value), "load": value}
+
+    @classmethod
+    def from_point_settings(cls, settings: Mapping[str, Any]) -> SweepConfig:
+        """The one-load sweep a campaign run's settings describe."""
+        return cls(**cls._shared_from_settings(settings), loads=(float(settings["load"]),))
+
+
+@dataclass(frozen=True)
+class FailureSweepConfig(ContentionSweep):
+    """A failure sweep (issue 31): every method at one offered load (``load``) as each server's
+    stationary probability of being down rises through ``failure_levels`` (random failures,
+    exponential up and down times with mean repair ``mttr_s``; ``edge.failures``). Level 0 is
+    the world without failures (and without a time-out)."""
+
+    methods: tuple[str, ...] = setting(DEFAULT_FAILURE_METHODS, "fixed methods, comma-separated (default: all)",
+                                       check=METHOD_NAMES)
+    failure_levels: tuple[float, ...] = setting(
+        (0.0, 0.05, 0.1, 0.2, 0.3), "each server's stationary probability of being down, comma-separated, "
+        "one sweep point each (default 0,0.05,0.1,0.2,0.3)", check=FAILURE_LEVELS)
+    load: float = setting(DEFAULT_FAILURE_LOAD, f"the offered load at every level (default {DEFAULT_FAILURE_LOAD:g}: the one "
+                          "load of the load sweep at which Oracle's queues are stable)", check=ONE_LOAD)
+    mttr_s: float = setting(DEFAULT_MTTR_S, f"each server's mean time to repair in seconds (default {DEFAULT_MTTR_S:g}; "
+                            "its mean time to failure follows from the level)", check=POSITIVE_NUMBER)
+    timeout_s: float | None = setting(
+        None, "how long a user waits for a reply before the on-device fallback (default: the world's worst-case "
+        "latency of a live uncontended copy)", check=POSITIVE_NUMBER, optional=True)
+
+    axis: ClassVar[SweepAxis] = FAILURE_AXIS
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name, check in (("failure_levels", FAILURE_LEVELS), ("load", ONE_LOAD), ("mttr_s", POSITIVE_NUMBER)):
+            if not check.accepts(getattr(self, name)):
+                raise ContentionError(f"{name}: expected {check.what}, got {getattr(self, name)!r}")
+        if self.timeout_s is not None and not POSITIVE_NUMBER.accepts(self.timeout_s):
+            raise ContentionError(f"timeout_s: expected {POSITIVE_NUMBER.what}, got {self.timeout_s!r}")
+
+    @property
+    def points(self) -> tuple[float, ...]:
+        return tuple(sorted(self.failure_levels))
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        return FAILURE_SWEEP_COLUMNS
+
+    def failures(self, level: float) -> FailureSettings:
+        """The failure model at ``level`` (0: none)."""
+        return FailureSettings.for_unavailability(level, mttr_s=self.mttr_s, timeout_s=self.timeout_s)
+
+    def point_world(self, value: float) -> ContentionConfig:
+        return replace(self.base, load=self.load, rate_per_user_hz=None, failures=self.failures(value),
+                       phase="test", n_requests=self.test_requests)
+
+    def point_columns(self, value: float, world: ContentionWorld) -> dict[str, Any]:
+        return {"failure_level": value, "load": self.load, "offered_load": world.offered_load()}
+
+    def point_settings(self, value: float) -> dict[str, Any]:
+        return {**super().point_settings(value), "load": self.load, "failure_level": value,
+                "mttr_s": self.mttr_s, "timeout_s": self.timeout_s}
+
+    @classmethod
+    def from_point_settings(cls, settings: Mapping[str, Any]) -> FailureSweepConfig:
+        """The one-level sweep a campaign run's settings describe."""
+        return cls(**cls._shared_from_settings(settings), failure_levels=(float(settings["failure_level"]),),
+                   load=float(settings["load"]), mttr_s=float(settings["mttr_s"]), timeout_s=settings["timeout_s"])
+
+
+#: Each point kind's configuration (a campaign run's ``kind`` -> the sweep it is one point of).
+POINT_KINDS: dict[str, type[SweepConfig] | type[FailureSweepConfig]] = {
+    LOAD_POINT: SweepConfig, FAILURE_POINT: FailureSweepConfig}
+
 
 def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int) -> SafeTailPolicy:
     # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
@@ -239,13 +487,24 @@ def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int
     return policy
 
 
-def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: None) -> pd.DataFrame:
-    """Every (load, method) row of ``sweep.csv``, loads ascending, methods in the given order."""
+def _row_line(row: Mapping[str, Any]) -> str:
+    """What a run's log says of one method at one point: its latency and copies, and with
+    failures its success rate and energy."""
+    line = (f"p50 {row['p50_s']:.3f} s  p99 {row['p99_s']:.3f} s  copies {row['mean_n_selected']:.2f}  "
+            f"fallback {row['fallback_rate']:.3f}")
+    if "failure_level" in row and "success_rate" in row:
+        line += f"  success {row['success_rate']:.3f}  energy {row['energy_j_per_request']:.3g} J"
+    return line
+
+
+def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line: None) -> pd.DataFrame:
+    """Every (point, method) row of the sweep's table, points ascending, methods in the given
+    order (the SafeTails first)."""
     rows: list[dict[str, Any]] = []
     inputs = scenario = None
-    for load in config.loads:
-        test_config = replace(config.base, load=load, rate_per_user_hz=None, phase="test",
-                              n_requests=config.test_requests)
+    label = config.axis.label
+    for value in config.points:
+        test_config = config.point_world(value)
         test_world = ContentionWorld(test_config, inputs, scenario)
         inputs, scenario = test_world.inputs, test_world.scenario
         policies: list[tuple[Policy, int]] = []
@@ -255,7 +514,7 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
                                           inputs, scenario)
             safetail = _safetail_policy(train_world, variant, config.base.seed)
             trained = run_policy(train_world, safetail, target=config.target)
-            log(f"load {load:g}: {variant.name} trained on {variant.train_requests} requests "
+            log(f"{label} {value:g}: {variant.name} trained on {variant.train_requests} requests "
                 f"in {trained.wall_s:.1f} s")
             safetail.training = False
             policies.append((safetail, variant.train_requests))
@@ -263,39 +522,16 @@ def run_sweep(config: SweepConfig, log: Callable[[str], None] = lambda line: Non
             policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name)), 0))
         for policy, train_requests in policies:
             run = run_policy(test_world, policy, target=config.target)
-            row = {"load": load, "offered_load": test_world.offered_load(), **summarise(run),
-                   "train_requests": train_requests}
+            row = {**config.point_columns(value, test_world), **summarise(run), "train_requests": train_requests}
             rows.append(row)
-            log(f"load {load:g}: {policy.name:<11} p50 {row['p50_s']:.3f} s  p99 {row['p99_s']:.3f} s  "
-                f"copies {row['mean_n_selected']:.2f}  fallback {row['fallback_rate']:.3f}  ({run.wall_s:.1f} s)")
-    return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
+            log(f"{label} {value:g}: {policy.name:<11} {_row_line(row)}  ({run.wall_s:.1f} s)")
+    return pd.DataFrame(rows, columns=list(config.columns))
 
 
-LOAD_POINT = "load_point"
-
-
-def point_settings(config: SweepConfig, load: float) -> dict[str, Any]:
-    """One load of the sweep as a campaign run's settings (JSON values, paths absolute)."""
-    base = config.base
-    conditions = base.user_conditions
-    if conditions not in ("topology", "generated"):
-        conditions = str(Path(conditions).resolve())
-    return {
-        "use_case": base.use_case, "users": base.users, "load": load, "seed": base.seed,
-        "queue": base.queue, "cancel": base.cancel, "background": base.background, "world": base.world,
-        "links": base.links,
-        "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
-        "user_conditions": conditions, "methods": list(config.methods), "safetail": config.safetail,
-        "preset": config.preset, "steps_scale": config.steps_scale, "reward": config.reward,
-        "target": config.target, "learner": list(config.learners), "dispatch": config.dispatch,
-        "test_requests": config.test_requests, "value_networks": config.n_value_networks,
-    }
-
-
-def point_run_id(settings: Mapping[str, Any]) -> str:
-    """The short hash of everything a load point's rows depend on (its settings, the input
-    files' contents, the code version)."""
-    identity = dict(settings, kind=LOAD_POINT, code_version=code_version())
+def point_run_id(settings: Mapping[str, Any], kind: str = LOAD_POINT) -> str:
+    """The short hash of everything a sweep point's rows depend on (its kind and settings, the
+    input files' contents, the code version)."""
+    identity = dict(settings, kind=kind, code_version=code_version())
     for key in ("topology", "placement"):
         identity[key] = file_identity(Path(settings[key]))
     if settings["user_conditions"] not in ("topology", "generated"):
@@ -304,53 +540,38 @@ def point_run_id(settings: Mapping[str, Any]) -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
 
 
-def load_point_specs(config: SweepConfig) -> list[RunSpec]:
-    """One campaign run per load, in load order (folder ``load-<load>``)."""
+def point_specs(config: ContentionSweep) -> list[RunSpec]:
+    """One campaign run per point, points ascending (folder ``<axis folder>-<value>``)."""
     specs = []
-    for load in config.loads:
-        settings = point_settings(config, load)
-        specs.append(RunSpec(name=f"load-{load:g}", run_id=point_run_id(settings), settings=settings,
-                             kind=LOAD_POINT))
+    axis = config.axis
+    for value in config.points:
+        settings = config.point_settings(value)
+        specs.append(RunSpec(name=f"{axis.folder}-{value:g}", run_id=point_run_id(settings, axis.kind),
+                             settings=settings, kind=axis.kind))
     return specs
 
 
-def _point_config(settings: Mapping[str, Any]) -> SweepConfig:
-    base = ContentionConfig(
-        use_case=settings["use_case"], users=settings["users"], seed=settings["seed"],
-        queue=settings["queue"], cancel=settings["cancel"], background=settings["background"],
-        # Absent from the folders of earlier versions, whose links were read at the start.
-        links=settings.get("links", "at-start"), world=settings["world"], topology=Path(settings["topology"]), placement=Path(settings["placement"]),
-        user_conditions=settings["user_conditions"])
-    # One learner's name in the folders of earlier versions, which trained one SafeTail.
-    learners = settings["learner"]
-    return SweepConfig(base=base, loads=(float(settings["load"]),), methods=tuple(settings["methods"]),
-                       safetail=settings["safetail"], preset=settings["preset"],
-                       steps_scale=settings["steps_scale"], reward=settings["reward"],
-                       target=settings["target"],
-                       learners=(learners,) if isinstance(learners, str) else tuple(learners),
-                       dispatch=settings["dispatch"],
-                       # Absent from the folders of earlier versions, where it followed steps_scale.
-                       test_requests_per_load=settings.get("test_requests"),
-                       value_networks=settings.get("value_networks", 1))
-
-
-def run_load_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
-    """Run one load of a sweep (a campaign run) into ``out_dir``: its ``sweep.csv`` rows, a
-    ``run.json`` recording the run id and a ``run.log`` (staged; nothing is lost if it stops half
-    way)."""
+def run_sweep_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
+    """Run one point of a sweep (a campaign run of kind ``load_point`` or ``failure_point``)
+    into ``out_dir``: its ``sweep.csv`` rows, a ``run.json`` recording the run id and a
+    ``run.log`` (staged; nothing is lost if it stops half way)."""
     from yafs_safetail import __version__
 
+    if spec.kind not in POINT_KINDS:
+        raise ContentionError(f"run {spec.name}: kind {spec.kind!r} is not a sweep point; "
+                              f"expected one of {', '.join(POINT_KINDS)}")
+    config = POINT_KINDS[spec.kind].from_point_settings(spec.settings)
     output = StagedOutput(out_dir, overwrite)
     with output as staging:
         with run_log(staging / RUN_LOG_FILE):
             log.info("yafs-safetail %s: %s", __version__, command or "(run from Python)")
-            log.info("load point %s (run id %s): %s", spec.name, spec.run_id,
+            log.info("%s point %s (run id %s): %s", config.axis.label, spec.name, spec.run_id,
                      ", ".join(f"{key}={value}" for key, value in spec.settings.items()))
             with Phase(f"{spec.name} sweep", logger=log):
-                frame = run_sweep(_point_config(spec.settings), log=log.info)
+                frame = run_sweep(config, log=log.info)
             frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
             write_text_atomic(staging / "run.json", json.dumps({
-                "package_version": __version__, "campaign_run_id": spec.run_id, "kind": LOAD_POINT,
+                "package_version": __version__, "campaign_run_id": spec.run_id, "kind": spec.kind,
                 "command": command, "settings": dict(spec.settings)}, indent=1, sort_keys=True) + "\n")
         output.publish()
     return out_dir

@@ -1,12 +1,15 @@
-"""What a load sweep's table says: the checks against the sweep's goals, SWEEP.md's and
-SEEDS.md's tables and the figures (``contention.sweep`` computes the table; this module only
-reads it).
+"""What a sweep's table says: the checks against the sweep's goals, the reports' tables
+(SWEEP.md and SEEDS.md for the load sweep, FAILURE_SWEEP.md for the failure sweep) and the
+figures, and the one writer of a sweep's folder (:meth:`SweepReport.write`;
+``contention.sweep`` computes the table; this module only reads it).
 """
 
 from __future__ import annotations
 
+import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.contention.sweep import SAFETAIL_CA, SAFETAIL_LEARNERS
-from yafs_safetail.methods.registry import SAFETAIL
+from yafs_safetail.methods.registry import ORACLE, SAFETAIL, parse_method
+from yafs_safetail.results.files import write_text_atomic
 
 
 def safetail_names(frame: pd.DataFrame) -> list[str]:
@@ -117,24 +121,24 @@ SAFETAIL_STYLE: dict[str, dict[str, Any]] = {
 }
 
 
-def _plot_methods(axis: Any, frame: pd.DataFrame, column: str) -> None:
-    """One line per method of ``column`` against load: the SafeTails thick and coloured, Oracle
-    dashed black, the other fixed methods thin in muted colours."""
+def _plot_methods(axis: Any, frame: pd.DataFrame, column: str, x: str = "load") -> None:
+    """One line per method of ``column`` against ``x`` (the sweep's axis): the SafeTails thick
+    and coloured, Oracle dashed black, the other fixed methods thin in muted colours."""
     fixed = [m for m in dict.fromkeys(frame["method"]) if m not in SAFETAIL_STYLE]
     muted = ["tab:gray", "tab:olive", "tab:cyan", "tab:brown", "tab:pink", "tab:purple", "tab:orange",
              "tab:green", "darkkhaki", "slategray"]
     for index, method in enumerate(m for m in fixed if m != "Oracle"):
         rows = frame[frame["method"] == method]
-        axis.plot(rows["load"], rows[column], marker=".", linewidth=1.0, alpha=0.75,
+        axis.plot(rows[x], rows[column], marker=".", linewidth=1.0, alpha=0.75,
                   color=muted[index % len(muted)], label=method)
     if "Oracle" in fixed:
         rows = frame[frame["method"] == "Oracle"]
-        axis.plot(rows["load"], rows[column], marker="x", linestyle="--", linewidth=1.4, color="black",
+        axis.plot(rows[x], rows[column], marker="x", linestyle="--", linewidth=1.4, color="black",
                   label="Oracle (all servers)")
     for method, style in SAFETAIL_STYLE.items():
         rows = frame[frame["method"] == method]
         if len(rows):
-            axis.plot(rows["load"], rows[column], marker="o", linewidth=3.0, zorder=5, **style)
+            axis.plot(rows[x], rows[column], marker="o", linewidth=3.0, zorder=5, **style)
 
 
 def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
@@ -180,34 +184,50 @@ def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
     return written
 
 
+def _seconds(value: float) -> str:
+    return f"{value:,.0f}" if value >= 100 else f"{value:.2f}"
+
+
+def _method_tables(frame: pd.DataFrame, x: str,
+                   tables: list[tuple[str, Callable[[pd.DataFrame, str, float], str]]]) -> str:
+    """One Markdown table per ``(title, cell)`` of ``tables``: a row per value of the axis ``x``,
+    a column per method (the SafeTails first); ``cell(rows, method, value)`` writes one cell
+    from the point's rows (indexed by method)."""
+    names = safetail_names(frame)
+    methods = names + [m for m in dict.fromkeys(frame["method"]) if m not in names]
+    header = f"| {x} | " + " | ".join(methods) + " |"
+    rule = "|---|" + "---|" * len(methods)
+    blocks = []
+    for title, cell in tables:
+        lines = [title, "", header, rule]
+        for value in sorted(frame[x].unique()):
+            at = frame[frame[x] == value].set_index("method")
+            lines.append(f"| {value:g} | " + " | ".join(cell(at, m, value) for m in methods) + " |")
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks) + "\n"
+
+
 def glance_markdown(frame: pd.DataFrame) -> str:
     """Every method's p99 and copies per request, one row per load (the SafeTails first, the best
     fixed method's p99 in bold): what sweep.png draws, for the console and SWEEP.md."""
-    names = safetail_names(frame)
-    methods = names + [m for m in dict.fromkeys(frame["method"]) if m not in names]
-    header = "| load | " + " | ".join(methods) + " |"
-    rule = "|---|" + "---|" * len(methods)
-    has_fixed = len(methods) > len(names)
+    has_fixed = bool(set(frame["method"]) - set(safetail_names(frame)))
+    best = {load: best_fixed_p99(frame, load)[0] for load in frame["load"].unique()} if has_fixed else {}
 
-    def seconds(value: float) -> str:
-        return f"{value:,.0f}" if value >= 100 else f"{value:.2f}"
+    def p99(at: pd.DataFrame, method: str, load: float) -> str:
+        text = _seconds(at.at[method, "p99_s"])
+        return f"**{text}**" if best.get(load) == method else text
 
-    p99_lines = ["p99 (s; the best fixed method's in bold):", "", header, rule]
-    copies_lines = ["Copies per request:", "", header, rule]
-    for load in sorted(frame["load"].unique()):
-        at = frame[frame["load"] == load].set_index("method")
-        best = best_fixed_p99(frame, load)[0] if has_fixed else None
-        p99_lines.append(f"| {load:g} | " + " | ".join(
-            f"**{seconds(at.at[m, 'p99_s'])}**" if m == best else seconds(at.at[m, "p99_s"]) for m in methods) + " |")
-        copies_lines.append(f"| {load:g} | " + " | ".join(f"{at.at[m, 'mean_n_selected']:.2f}" for m in methods)
-                            + " |")
-    return "\n".join(p99_lines) + "\n\n" + "\n".join(copies_lines) + "\n"
+    return _method_tables(frame, "load", [
+        ("p99 (s; the best fixed method's in bold):", p99),
+        ("Copies per request:", lambda at, method, load: f"{at.at[method, 'mean_n_selected']:.2f}")])
 
 
-def checks_markdown(frame: pd.DataFrame) -> str:
-    """The goals of :func:`sweep_checks` as a Markdown table."""
+def checks_markdown(frame: pd.DataFrame,
+                    checks: Callable[[pd.DataFrame], list[tuple[str, bool, str]]] | None = None) -> str:
+    """The goals of ``checks`` (default :func:`sweep_checks`, the load sweep's) as a Markdown table."""
     lines = ["| goal | holds | measured |", "|---|---|---|"]
-    lines += [f"| {claim} | {'yes' if ok else 'no'} | {measured} |" for claim, ok, measured in sweep_checks(frame)]
+    lines += [f"| {claim} | {'yes' if ok else 'no'} | {measured} |"
+              for claim, ok, measured in (checks or sweep_checks)(frame)]
     return "\n".join(lines) + "\n"
 
 
@@ -219,3 +239,145 @@ def frame_markdown_table(frame: pd.DataFrame) -> str:
     lines = ["| " + " | ".join(frame.columns) + " |", "|" + "---|" * len(frame.columns)]
     lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(index=False)]
     return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- the failure sweep
+
+
+#: Oracle's copies for :func:`_redundancy`: more than any x (it sends to every server).
+ORACLE_COPIES = 1_000
+
+
+def _redundancy(method: str) -> int | None:
+    """How many copies a fixed method sends every request (Oracle: all; x for the x-baselines;
+    None for a method whose copies depend on the request: Hedge, Tied, the SafeTails)."""
+    if method == ORACLE:
+        return ORACLE_COPIES
+    return parse_method(method)[1]
+
+
+def failure_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
+    """The failure sweep's goals (issue 31), each as (claim, holds, measured), computed from the
+    table: at every level with failures, Oracle's and the x >= 2 baselines' success rates above
+    every x = 1 baseline's; at every level, each SafeTail's energy per request below Oracle's."""
+    levels = sorted(frame["failure_level"].unique())
+    methods = list(dict.fromkeys(frame["method"]))
+
+    def value(method: str, level: float, column: str) -> float:
+        rows = frame[(frame["method"] == method) & (frame["failure_level"] == level)][column]
+        return float(rows.iloc[0]) if len(rows) else math.nan
+
+    checks: list[tuple[str, bool, str]] = []
+    singles = [m for m in methods if _redundancy(m) == 1]
+    redundant = [m for m in methods if (_redundancy(m) or 0) >= 2]
+    if singles and redundant:
+        group = " and ".join(([ORACLE] if ORACLE in redundant else [])
+                             + (["x >= 2"] if any(m != ORACLE for m in redundant) else []))
+        # (At level 0 nothing is lost: every method's success rate is its refusals' alone.)
+        for level in (level for level in levels if level > 0):
+            low = min(redundant, key=lambda m: value(m, level, "success_rate"))
+            high = max(singles, key=lambda m: value(m, level, "success_rate"))
+            lowest, highest = value(low, level, "success_rate"), value(high, level, "success_rate")
+            checks.append((f"{group} succeed more often than every x = 1 at level {level:g}", lowest > highest,
+                           f"lowest {low} {lowest:.4f} vs highest x = 1 {high} {highest:.4f}"))
+    if ORACLE in methods:
+        for name in safetail_names(frame):
+            for level in levels:
+                ours, oracle = value(name, level, "energy_j_per_request"), value(ORACLE, level, "energy_j_per_request")
+                checks.append((f"{name} energy per request < Oracle's at level {level:g}", ours < oracle,
+                               f"{ours:.3g} J vs {oracle:.3g} J ({ours / oracle:.2f}x)"))
+    return checks
+
+
+def failure_glance_markdown(frame: pd.DataFrame) -> str:
+    """Every method's success rate, p99 and energy per request, one row per failure level (the
+    SafeTails first): what failure_sweep.png draws, for the console and FAILURE_SWEEP.md."""
+    return _method_tables(frame, "failure_level", [
+        ("Success rate (share of requests a server answered within the time-out):",
+         lambda at, method, level: f"{at.at[method, 'success_rate']:.4f}"),
+        ("p99 (s):", lambda at, method, level: _seconds(at.at[method, "p99_s"])),
+        ("Energy per request (J: the servers' compute and the device's radio):",
+         lambda at, method, level: f"{at.at[method, 'energy_j_per_request']:.3g}")])
+
+
+def plot_failure_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
+    """failure_sweep.png: success rate, p99 (log scale) and energy per request against the
+    failure level, one line per method, both SafeTails highlighted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
+    panels = (("success_rate", "success rate", "requests answered (higher is better)"),
+              ("p99_s", "p99 latency (s, log scale)", "p99 latency (lower is better)"),
+              ("energy_j_per_request", "energy per request (J)", "energy per request (lower is better)"))
+    for axis, (column, label, title) in zip(axes, panels, strict=True):
+        _plot_methods(axis, frame, column, x="failure_level")
+        axis.set_xlabel("each server's probability of being down")
+        axis.set_ylabel(label)
+        axis.set_title(title)
+        axis.grid(True, which="both", alpha=0.3)
+    axes[1].set_yscale("log")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles[::-1], labels[::-1], loc="center right", fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 0.85, 1))
+    written = out_dir / "failure_sweep.png"
+    fig.savefig(written, dpi=120, metadata={"Software": None})
+    plt.close(fig)
+    return [written]
+
+
+# ----------------------------------------------------------------------------- a sweep's folder
+
+
+def write_table(path: Path, frame: pd.DataFrame) -> None:
+    """A sweep's CSV table, floats to six significant digits (same rows, same bytes)."""
+    write_text_atomic(path, frame.to_csv(index=False, float_format="%.6g"))
+
+
+@dataclass(frozen=True)
+class SweepReport:
+    """What a sweep's folder holds besides its points' folders, and how each part is computed
+    from the sweep's table.
+
+    Attributes:
+        table_file: the assembled table (every point's rows).
+        report_file: the Markdown report: the glance, every row, the goals.
+        row_columns: the report's "Every row" table's columns.
+        glance: the report's first tables (the console prints them too).
+        checks: the goals, each (claim, holds, measured).
+        plot: draws the figures into a folder, returns their paths.
+    """
+
+    table_file: str
+    report_file: str
+    row_columns: tuple[str, ...]
+    glance: Callable[[pd.DataFrame], str]
+    checks: Callable[[pd.DataFrame], list[tuple[str, bool, str]]]
+    plot: Callable[[pd.DataFrame, Path], list[Path]]
+
+    def markdown(self, frame: pd.DataFrame, heading: str, preface: str) -> str:
+        """The report: ``heading``, ``preface`` (how the SafeTails learn, the command), the
+        glance, every row and the goals."""
+        return (f"# {heading}\n\n" + preface + self.glance(frame) + "\n## Every row\n\n"
+                + frame_markdown_table(frame[list(self.row_columns)]) + "\n\n## Goals\n\n"
+                + checks_markdown(frame, self.checks))
+
+    def write(self, folder: Path, frame: pd.DataFrame, heading: str, preface: str,
+              run_json: Mapping[str, Any]) -> None:
+        """The sweep's table, report, figures and ``run.json`` into ``folder``."""
+        write_table(folder / self.table_file, frame)
+        write_text_atomic(folder / self.report_file, self.markdown(frame, heading, preface))
+        self.plot(frame, folder)
+        write_text_atomic(folder / "run.json", json.dumps(dict(run_json), indent=1) + "\n")
+
+
+LOAD_REPORT = SweepReport(
+    "sweep.csv", "SWEEP.md", ("load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"),
+    glance_markdown, sweep_checks, plot_sweep)
+FAILURE_REPORT = SweepReport(
+    "failure_sweep.csv", "FAILURE_SWEEP.md",
+    ("failure_level", "method", "n_requests", "success_rate", "p50_s", "p99_s", "mean_n_selected",
+     "energy_j_per_request", "share_all_lost", "share_timeout", "share_all_refused"),
+    failure_glance_markdown, failure_checks, plot_failure_sweep)

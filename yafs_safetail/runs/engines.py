@@ -81,21 +81,22 @@ def _run_experiment(task: RunTask) -> None:
     run_experiment(config)
 
 
-def _run_load_point(task: RunTask) -> None:
-    from yafs_safetail.contention.sweep import run_load_point
+def _run_sweep_point(task: RunTask) -> None:
+    from yafs_safetail.contention.sweep import run_sweep_point
 
-    run_load_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
+    run_sweep_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
 
 
 #: What executes each kind of run (``RunSpec.kind``); each imports its machinery when it runs.
 RUN_KINDS: dict[str, Callable[[RunTask], None]] = {
     "experiment": _run_experiment,
-    "load_point": _run_load_point,
+    "load_point": _run_sweep_point,
+    "failure_point": _run_sweep_point,
 }
 
 
 def execute(task: RunTask) -> RunResult:
-    """Run one experiment (or one load of a load sweep); a failure is returned, never raised,
+    """Run one experiment (or one point of a load or failure sweep); a failure is returned, never raised,
     so the others go on."""
     started = time.perf_counter()
     try:

@@ -67,8 +67,9 @@ class RunSpec:
         name: its folder under the campaign's folder (may hold ``/``).
         run_id: the hash of its identity (:func:`identity`).
         settings: the ExperimentConfig fields it sets, JSON values (paths absolute).
-        kind: what executes it: ``"experiment"`` (``run_experiment``) or ``"load_point"`` (one
-            load of a contention-world load sweep, ``contention.sweep.run_load_point``).
+        kind: what executes it: ``"experiment"`` (``run_experiment``), ``"load_point"`` or
+            ``"failure_point"`` (one point of a contention-world load or failure sweep,
+            ``contention.sweep.run_sweep_point``).
     """
 
     name: str
