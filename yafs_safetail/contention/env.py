@@ -78,6 +78,8 @@ from yafs_safetail.contention.world import (
     ContentionWorld,
     check_contention_config,
 )
+from yafs_safetail.edge.energy import EnergyModel
+from yafs_safetail.edge.failures import FailureSettings
 from yafs_safetail.edge.inputs import TraceInputs
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.scenario import EdgeScenario
@@ -233,6 +235,8 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         traces_dir: str | Path | None = _DEFAULTS.traces_dir,
         block_requests: int = _DEFAULTS.block_requests,
         user_conditions: str | Path = _DEFAULTS.user_conditions,
+        failures: FailureSettings = _DEFAULTS.failures,
+        energy: EnergyModel = _DEFAULTS.energy,
         dispatch: str = "all",
         target: str = "eq4",
         reward: str = "paper",
@@ -255,7 +259,7 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
             queue=queue, cancel=cancel, background=background, links=links, world=world,
             topology=Path(topology), placement=Path(placement),
             traces_dir=None if traces_dir is None else Path(traces_dir), block_requests=block_requests,
-            user_conditions=user_conditions)
+            user_conditions=user_conditions, failures=failures, energy=energy)
         check_contention_config(self.config)
         # The seed-0 world checks every setting and input file now, and its trace inputs and
         # scenario serve every later world (they do not depend on the seed).
