@@ -9,13 +9,16 @@ it (Eq. 1 per copy, ω^t per step, the per-copy lookups of the simulation).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from yafs_safetail.edge import published
 from yafs_safetail.edge.calibration import WorldSettings
+from yafs_safetail.edge.energy import EnergyModel
+from yafs_safetail.edge.failures import DownIntervals, FailureSettings
 from yafs_safetail.edge.latency import CopyLatency, copy_latency, copy_latency_s
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.scenario import EdgeScenario
@@ -111,6 +114,12 @@ class EdgeWorld:
         fallback_latency_s: the on-device fallback latency (assumption iv).
         nu: ν of Eq. 4 used for ``target_s``.
         settings: the world settings it was drawn with.
+        failures: the failure settings it was drawn with (default: no failures).
+        down_intervals: each server's outages over the phase (from the phase's ``"failures"``
+            stream and the scripted file); None: no server ever fails.
+        timeout_s: how long the user waits for a first reply (``edge.failures.effective_timeout_s``;
+            ``inf`` with failures off, so every latency is the paper's).
+        energy: the servers' and the user device's power models.
     """
 
     seed: int
@@ -140,6 +149,10 @@ class EdgeWorld:
     fallback_latency_s: float
     nu: int
     settings: WorldSettings
+    failures: FailureSettings = field(default_factory=FailureSettings)
+    down_intervals: DownIntervals | None = None
+    timeout_s: float = math.inf
+    energy: EnergyModel = field(default_factory=EnergyModel)
 
     @property
     def n_steps(self) -> int:

@@ -13,8 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.edge import calibration, sampling
 from yafs_safetail.edge.calibration import LANDED, WorldSettings
+from yafs_safetail.edge.energy import EnergyModel
+from yafs_safetail.edge.failures import FailureSettings, effective_timeout_s, phase_down_intervals
 from yafs_safetail.edge.inputs import (
     TraceInputs,
     WorldError,
@@ -48,7 +51,7 @@ __all__ = [
 #: A phase's independent random streams, in the order they are spawned from the phase's seed
 #: (:func:`phase_streams`). The order decides every draw of every world: never reorder it, and
 #: add a new stream only at the end.
-PHASE_STREAMS: tuple[str, ...] = ("requests", "user_bandwidth", "episodes", "servers")
+PHASE_STREAMS: tuple[str, ...] = ("requests", "user_bandwidth", "episodes", "servers", "failures")
 
 
 def phase_streams(seed: int, phase: str) -> dict[str, np.random.SeedSequence]:
@@ -125,6 +128,17 @@ def _check_world_inputs(scenario: EdgeScenario, use_case: UseCase, inputs: Trace
         raise WorldError(f"{scenario.topology.source}: load device beyond the trace's {n_devices}")
 
 
+def _worst_copy_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampling.LinkScales,
+                          max_load: int) -> float:
+    """The slowest latency an admitted copy can have in this topology (slowest links, longest
+    RTT, slowest compute): the fallback's floor and the default time-out with failures on."""
+    return worst_case_copy_latency_s(
+        inputs, use_case, max_load,
+        bandwidth_scale=min(float(scales.server_bandwidth.min()), scales.user_bandwidth),
+        extra_propagation_s=float(scales.server_extra_propagation_s.max()),
+    )
+
+
 def _fallback_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampling.LinkScales,
                         max_load: int, settings: WorldSettings) -> float:
     """The on-device fallback latency of a world.
@@ -137,11 +151,7 @@ def _fallback_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampling
     admitted copies are slower than the device.
     """
     if settings.fallback_compute_multiple is None:
-        worst_s = worst_case_copy_latency_s(
-            inputs, use_case, max_load,
-            bandwidth_scale=min(float(scales.server_bandwidth.min()), scales.user_bandwidth),
-            extra_propagation_s=float(scales.server_extra_propagation_s.max()),
-        )
+        worst_s = _worst_copy_latency_s(use_case, inputs, scales, max_load)
         # Rounded up to 0.1 s so the recorded value reads cleanly in results.
         return max(float(use_case.fallback_latency_s), math.ceil(worst_s * 10) / 10)
     return settings.fallback_compute_multiple * float(inputs.median_compute_by_k_s[0])
@@ -157,6 +167,9 @@ def build_world(
     episode_steps: int = DEFAULT_EPISODE_STEPS,
     max_load: int = DEFAULT_MAX_LOAD,
     settings: WorldSettings = LANDED,
+    failures: FailureSettings | None = None,
+    energy: EnergyModel | None = None,
+    step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
 ) -> EdgeWorld:
     """Draws a phase's world.
 
@@ -172,6 +185,11 @@ def build_world(
         settings: the readings and calibrated parameters (:mod:`yafs_safetail.edge.calibration`):
             propagation per direction, load scaling and start rows, bandwidth sharing, the
             fallback rule and ν.
+        failures: which servers fail and the user's time-out (``edge.failures``; None: no
+            server ever fails, no time-out, every draw and latency as without this argument).
+        energy: the servers' and the device's power models (None: ``EnergyModel()``).
+        step_interval_s: time between two requests; the outages are drawn over the phase's
+            ``n_steps + 1`` intervals (the last request's copies end within the interval after it).
 
     The link BW and PR of the topology act on the trace pools (:func:`link_scales`); the
     fallback latency follows the settings' rule (:func:`_fallback_latency_s`).
@@ -203,6 +221,14 @@ def build_world(
         inputs, scenario.server_conditions, servers.rtt_quantiles,
         scales.server_extra_propagation_s, settings.propagation_rtt_fraction)
     target_compute_s = target_compute_by_request_s(inputs, requests.gamma, nu, settings.target_compute)
+    failures = FailureSettings() if failures is None else failures
+    # Drawn last, from their own stream: a world without failures draws nothing here, and a
+    # world with them has exactly the same requests, bandwidths, loads and RTTs.
+    down_intervals = (phase_down_intervals(failures, n, (n_steps + 1) * step_interval_s,
+                                           np.random.default_rng(streams["failures"]))
+                      if failures.enabled else None)
+    timeout_s = (effective_timeout_s(failures, _worst_copy_latency_s(use_case, inputs, scales, max_load))
+                 if failures.enabled or failures.timeout_s is not None else math.inf)
     return EdgeWorld(
         seed=int(seed),
         phase=phase,
@@ -238,4 +264,8 @@ def build_world(
         fallback_latency_s=fallback_latency_s,
         nu=nu,
         settings=settings,
+        failures=failures,
+        down_intervals=down_intervals,
+        timeout_s=timeout_s,
+        energy=EnergyModel() if energy is None else energy,
     )
