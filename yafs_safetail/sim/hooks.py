@@ -23,6 +23,15 @@ equally among them), so the input and output transfers of one copy use one bandw
 ``uses_link_queues`` is False and ``concurrent`` is True: in the paper's model copies never
 wait for each other (Eq. 1 has no waiting term; assumption ii).
 
+Failures and energy (docs/failures_energy.md): with the world's ``down_intervals`` a copy whose
+server is down when it arrives is lost at once (the core sees a refusal, the record counts it as
+lost), and one whose server goes down before its compute ends holds its process until then and
+sends no reply (its reply finds no route: the core's ``"lost"``). Every copy's energy is kept
+here: its server's marginal power over the time it computed, the device's radio for its upload
+and for the download of every reply that reached the user. Two totals are accumulated apart
+(each server's integral of our running processes over time, the device's radio per transfer),
+against which the per-copy sums are tested.
+
 Request -> step: the n-th request the user emits is step n of the world (its request, trace
 row and draws), whichever selection routes it; with the default one request per
 ``step_interval_s`` this is also the request's minute in the load trace.
@@ -74,9 +83,15 @@ class EdgeModelError(RuntimeError):
 
 
 class _CopyState:
-    """The Eq. 1 terms of one copy, filled in as it travels."""
+    """The Eq. 1 terms of one copy, filled in as it travels, and what became of it.
 
-    __slots__ = ("step", "server", "input_s", "output_s", "rtt_s", "compute_s", "refused")
+    ``served_s`` is the time it held a server process: its compute time, or until its server
+    failed (0 when refused or lost on arrival). ``lost``: its server failed before its reply
+    left; ``lost_on_arrival``: the server was down when it arrived (the core saw a refusal).
+    """
+
+    __slots__ = ("step", "server", "input_s", "output_s", "rtt_s", "compute_s", "refused",
+                 "served_s", "lost", "lost_on_arrival")
 
     def __init__(self, step: int, server: int, input_s: float, output_s: float, rtt_s: float) -> None:
         self.step = step
@@ -86,6 +101,30 @@ class _CopyState:
         self.rtt_s = rtt_s
         self.compute_s = float("nan")
         self.refused = False
+        self.served_s = 0.0
+        self.lost = False
+        self.lost_on_arrival = False
+
+
+class CopyFates:
+    """What became of one request's copies, and what they cost (:meth:`EdgeModel.request_fates`).
+
+    Attributes:
+        lost: copies lost to a failed server (on arrival or while computing).
+        lost_on_arrival: those of them the core counted as refused (the server was down).
+        server_energy_j: the servers' marginal energy of every copy (per process power x the
+            time it computed).
+        radio_energy_j: the device's radio: every copy's upload, every received reply's download.
+    """
+
+    __slots__ = ("lost", "lost_on_arrival", "server_energy_j", "radio_energy_j")
+
+    def __init__(self, lost: int, lost_on_arrival: int, server_energy_j: float,
+                 radio_energy_j: float) -> None:
+        self.lost = lost
+        self.lost_on_arrival = lost_on_arrival
+        self.server_energy_j = server_energy_j
+        self.radio_energy_j = radio_energy_j
 
 
 class EdgeModel:
@@ -103,6 +142,8 @@ class EdgeModel:
         app_name: the application name (from the placement).
         service_module: the service module name (from the placement).
         fallback_latency_s: the on-device fallback latency of the use case.
+        timeout_s: how long the user waits for a first reply (``inf`` with failures off).
+        device_radio_energy_j: the device's radio energy of every transfer so far.
         requests_seen: number of requests mapped to steps so far.
     """
 
@@ -119,6 +160,7 @@ class EdgeModel:
         self.app_name = scenario.app_name
         self.service_module = scenario.module_name
         self.fallback_latency_s = world.fallback_latency_s
+        self.timeout_s = world.timeout_s
         self.requests_seen = 0
         self._server_of_node = {node: index for index, node in enumerate(self.server_nodes)}
         # A list, not an array: it is read and updated per copy, where NumPy scalars are slow.
@@ -145,6 +187,16 @@ class EdgeModel:
         self._max_load = world.max_load
         self._compute_width = world.compute_by_processes_s.shape[2]
         self._n_steps = world.n_steps
+        self._down = world.down_intervals
+        self._per_process_w = world.energy.server.per_process_w
+        self._radio = world.energy.radio
+        self._input_bytes = world.input_bytes.tolist()
+        self._output_bytes = world.output_bytes.tolist()
+        # The independent totals: per server, the integral over time of our running processes
+        # (process-seconds, closed at every change); the device's radio energy per transfer.
+        self._process_seconds = [0.0] * self.n_servers
+        self._last_change_s = [0.0] * self.n_servers
+        self.device_radio_energy_j = 0.0
 
     # ------------------------------------------------------------------ requests and steps
     def begin_request(self, request_id: Any) -> int:
@@ -216,6 +268,43 @@ class EdgeModel:
             None if states is None or not 0 <= server < self.n_servers else states[server])
         return None if state is None or state.refused else state
 
+    def copy_lost(self, request_id: Any, server_node: Any) -> bool:
+        """Whether the copy of ``request_id`` on ``server_node`` was lost to a failure (its
+        reply must not be sent)."""
+        states = self._copies.get(request_id)
+        state = None if states is None else states[self._server_of_node[server_node]]
+        return state is not None and state.lost
+
+    def request_fates(self, request_id: Any) -> CopyFates:
+        """What became of every copy of ``request_id``, and their energy (call before
+        :meth:`forget_request`)."""
+        lost = lost_on_arrival = 0
+        server_energy_j = radio_energy_j = 0.0
+        radio = self._radio
+        for state in self._copies.get(request_id, ()):
+            if state is None:
+                continue
+            radio_energy_j += radio.upload_energy_j(self._input_bytes[state.step], state.input_s)
+            if state.lost:
+                lost += 1
+                lost_on_arrival += state.lost_on_arrival
+            elif not state.refused:
+                radio_energy_j += radio.download_energy_j(self._output_bytes[state.step], state.output_s)
+            server_energy_j += self._per_process_w * state.served_s
+        return CopyFates(lost, lost_on_arrival, server_energy_j, radio_energy_j)
+
+    def server_energy_totals_j(self, now_s: float) -> list[float]:
+        """Each server's marginal energy of our copies up to ``now_s``, from the integral of
+        its running processes over time (independent of the per-copy accounting)."""
+        return [self._per_process_w * (seconds + running * (now_s - last_s))
+                for seconds, running, last_s in zip(self._process_seconds, self._own_running,
+                                                    self._last_change_s, strict=True)]
+
+    def _processes_change(self, server: int, now_s: float, change: int) -> None:
+        self._process_seconds[server] += self._own_running[server] * (now_s - self._last_change_s[server])
+        self._last_change_s[server] = now_s
+        self._own_running[server] += change
+
     def forget_request(self, request_id: Any) -> None:
         """Drop the per-copy records of a completed request (keeps memory flat on long runs)."""
         self._copies.pop(request_id, None)
@@ -246,11 +335,17 @@ class EdgeModel:
     def hop_delay_s(self, sim: Sim, message: Message, src_node: Any, dst_node: Any) -> float:
         """Eq. 1's term for this hop (see the module docstring)."""
         if src_node == self.user_node:
-            return self._dispatch(message, self._server_of_node[message.copy_dst_node]).input_s
+            state = self._dispatch(message, self._server_of_node[message.copy_dst_node])
+            self.device_radio_energy_j += self._radio.upload_energy_j(
+                self._input_bytes[state.step], state.input_s)
+            return state.input_s
         if src_node == self.access_point_node:
             if dst_node == self.user_node:
                 server = self._server_of_node[message.copy_dst_node]
-                return self._copies[message.id][server].output_s
+                state = self._copies[message.id][server]
+                self.device_radio_energy_j += self._radio.download_energy_j(
+                    self._output_bytes[state.step], state.output_s)
+                return state.output_s
             state = self._copies[message.id][self._server_of_node[dst_node]]
             return state.rtt_s + state.input_s
         source_server = self._server_of_node.get(src_node)
@@ -261,22 +356,35 @@ class EdgeModel:
 
     # ------------------------------------------------------------------ ServiceModel hooks
     def admit(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> bool:
-        """Refuse when the server already has ``max_load`` active users; else start a process."""
+        """Lose the copy when its server is down; refuse it when the server already has
+        ``max_load`` active users; else start a process (until its compute ends, or its
+        server fails first)."""
         server = self._server_of_node[node]
         state = self._copies[message.id][server]
+        down = self._down
+        now_s = sim.env.now
+        if down is not None and down.is_down(server, now_s):
+            # A server that is down cannot refuse: the copy is lost, and the user never hears.
+            state.lost = state.lost_on_arrival = True
+            return False
         active = self._background[state.step][server] + self._own_running[server]
         if active >= self._max_load:
             state.refused = True
             return False
-        self._own_running[server] += 1
-        state.compute_s = self._compute[state.step][server * self._compute_width + active]
+        self._processes_change(server, now_s, +1)
+        state.compute_s = state.served_s = self._compute[state.step][server * self._compute_width + active]
+        if down is not None:
+            failed_s = down.first_failure_s(server, now_s, now_s + state.compute_s)
+            if failed_s is not None:
+                state.lost = True
+                state.served_s = failed_s - now_s
         return True
 
     def service_time_s(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> float:
-        """The compute time fixed at admission (k = ℓ_i + 1 processes)."""
-        return self._copies[message.id][self._server_of_node[node]].compute_s
+        """The compute time fixed at admission (k = ℓ_i + 1 processes), or the time until the
+        server fails."""
+        return self._copies[message.id][self._server_of_node[node]].served_s
 
     def release(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> None:
-        """The copy's process ends: one active user fewer on the server."""
-        server = self._server_of_node[node]
-        self._own_running[server] -= 1
+        """The copy's process ends (or its server failed): one active user fewer on the server."""
+        self._processes_change(self._server_of_node[node], sim.env.now, -1)

@@ -1,5 +1,13 @@
 """The YAFS Selection that drives any policy: one request -> the policy's subset -> one copy per
-chosen server -> the first reply -> a :class:`~yafs_safetail.record.RequestRecord`."""
+chosen server -> the first reply -> a :class:`~yafs_safetail.record.RequestRecord`.
+
+Why a request ended (``end_reason``, docs/failures_energy.md): a first reply within the world's
+time-out ends it (``"reply"``, latency as Eq. 2). Otherwise the user takes the on-device
+fallback: at once when every copy was refused (``"all_refused"``, the paper's rule), else
+after the time-out (``"all_lost"`` when every copy not refused was lost to a failed server,
+``"timeout"`` otherwise), so its latency is the time-out plus the fallback's. With failures off
+the time-out is infinite and nothing is lost: every record is the paper's.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from yafs_safetail.edge.failures import END_ALL_LOST, END_ALL_REFUSED, END_REPLY, END_TIMEOUT
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.policy import (
     DispatchSupport,
@@ -106,6 +115,8 @@ class PolicySelection(Selection):
                     self._request_routes[chosen] = cached
             self._pending[message.id] = (step, cached[0])
             return cached[1]
+        if model.copy_lost(message.id, topology_src):
+            return [], []  # its server failed before the reply left: the user never hears of it
         route = self._reply_routes.get(topology_src)
         if route is None:
             route = self._reply_routes[topology_src] = ([model.reply_path(topology_src)], [self._sink_des])
@@ -122,12 +133,23 @@ class PolicySelection(Selection):
             return
         step, servers = pending
         model = self.edge_model
+        fates = model.request_fates(outcome.request_id)
+        refused = outcome.refused - fates.lost_on_arrival
         first = outcome.first
+        timeout_s = model.timeout_s
+        if first is not None and first.time_end - outcome.time_emit > timeout_s:
+            first = None  # the user gave up before this reply came
         nan = math.nan
         if first is None:
-            latency_s, winner = model.fallback_latency_s, -1
+            winner = -1
             upload_s = propagation_s = download_s = compute_s = nan
+            if refused == len(servers):
+                end_reason, latency_s = END_ALL_REFUSED, model.fallback_latency_s
+            else:
+                end_reason = END_ALL_LOST if fates.lost == len(servers) - refused else END_TIMEOUT
+                latency_s = timeout_s + model.fallback_latency_s
         else:
+            end_reason = END_REPLY
             winner = model.server_index(first.dst_node)
             latency_s = first.time_end - outcome.time_emit
             parts = model.copy_breakdown(outcome.request_id, winner)
@@ -143,13 +165,19 @@ class PolicySelection(Selection):
             target_s=model.target_latency_s(step),
             servers=servers,
             n_servers=model.n_servers,
-            refused=outcome.refused,
+            refused=refused,
             fallback=first is None,
             winner=winner,
             upload_s=upload_s,
             propagation_s=propagation_s,
             download_s=download_s,
             compute_s=compute_s,
+            lost=fates.lost,
+            end_reason=end_reason,
+            server_energy_j=fates.server_energy_j,
+            radio_energy_j=fates.radio_energy_j,
+            # Copies in this world are never cancelled: nothing is saved.
+            saved_energy_j=0.0,
         )
         record = self.policy.feedback(record) or record
         self._on_record(record)
