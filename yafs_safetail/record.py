@@ -40,6 +40,18 @@ REQUESTS_SCHEMA: dict[str, str] = {
     "compute_s": "float",
 }
 REQUESTS_COLUMNS: tuple[str, ...] = tuple(REQUESTS_SCHEMA)
+#: Columns written after ``epsilon`` (why each request ended and what its copies cost,
+#: docs/failures_energy.md), in file order: added after the first release, so the columns
+#: before them keep their places and bytes, and a requests.csv written before them still reads.
+OUTCOME_ENERGY_SCHEMA: dict[str, str] = {
+    "end_reason": "str",
+    "lost": "int",
+    "energy_j": "float",
+    "server_energy_j": "float",
+    "radio_energy_j": "float",
+    "saved_energy_j": "float",
+}
+OUTCOME_ENERGY_COLUMNS: tuple[str, ...] = tuple(OUTCOME_ENERGY_SCHEMA)
 #: The separator of server indices in the ``servers`` column ("0;2;4").
 SERVERS_SEPARATOR = ";"
 
@@ -117,7 +129,8 @@ class RequestRecord:
 
 
 def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: int) -> pd.DataFrame:
-    """The ``requests.csv`` rows of one method and phase (contract columns, then ``epsilon``)."""
+    """The ``requests.csv`` rows of one method and phase (contract columns, then ``epsilon``,
+    then :data:`OUTCOME_ENERGY_COLUMNS`)."""
     return pd.DataFrame(
         {
             "method": [r.method for r in records],
@@ -139,5 +152,11 @@ def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: i
             "download_s": [r.download_s for r in records],
             "compute_s": [r.compute_s for r in records],
             "epsilon": [r.epsilon for r in records],
+            "end_reason": [r.end_reason for r in records],
+            "lost": [r.lost for r in records],
+            "energy_j": [r.energy_j for r in records],
+            "server_energy_j": [r.server_energy_j for r in records],
+            "radio_energy_j": [r.radio_energy_j for r in records],
+            "saved_energy_j": [r.saved_energy_j for r in records],
         }
     )

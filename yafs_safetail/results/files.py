@@ -20,7 +20,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from yafs_safetail.record import PHASES, REQUESTS_COLUMNS, REQUESTS_SCHEMA, SERVERS_SEPARATOR
+from yafs_safetail.edge.failures import END_REASONS
+from yafs_safetail.record import (
+    OUTCOME_ENERGY_SCHEMA,
+    PHASES,
+    REQUESTS_COLUMNS,
+    REQUESTS_SCHEMA,
+    SERVERS_SEPARATOR,
+)
 
 REQUESTS_FILE = "requests.csv"
 RUN_FILE = "run.json"
@@ -51,11 +58,20 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "min_window_n_selected",
     "max_window_n_selected",
     "thin_percentiles",
+    "success_rate",
+    "all_refused_rate",
+    "all_lost_rate",
+    "timeout_rate",
+    "energy_j_per_request",
 )
+#: How each request ended (``requests.csv``'s ``end_reason``): the summary's share of each.
+END_REASON_RATE_COLUMNS: dict[str, str] = {"reply": "success_rate", "all_refused": "all_refused_rate",
+                                           "all_lost": "all_lost_rate", "timeout": "timeout_rate"}
 #: Summary columns added after the first release: a summary.csv written before them reads with
 #: NaN there (``thin_percentiles``: computed from ``n_requests``, as it is a function of it).
 OPTIONAL_SUMMARY_COLUMNS: tuple[str, ...] = ("min_window_n_selected", "max_window_n_selected",
-                                             "thin_percentiles")
+                                             "thin_percentiles", *END_REASON_RATE_COLUMNS.values(),
+                                             "energy_j_per_request")
 
 #: A percentile is trusted when at least this many test requests lie beyond it: the q-th
 #: percentile of n requests rests on the n·(1 − q) slowest ones, and with fewer than 10 of them
@@ -198,7 +214,8 @@ def read_requests_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
             bad value, the line.
     """
     file = _results_file(path, REQUESTS_FILE)
-    text_columns = [c for c, kind in REQUESTS_SCHEMA.items() if kind == "str"]
+    typed = {**REQUESTS_SCHEMA, **OUTCOME_ENERGY_SCHEMA}
+    text_columns = [c for c, kind in typed.items() if kind == "str"]
     try:
         raw = pd.read_csv(file, dtype={c: str for c in text_columns}, low_memory=False)
     except pd.errors.EmptyDataError:
@@ -209,8 +226,14 @@ def read_requests_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     if missing:
         raise ResultsFileError(f"{file}: missing column(s) {', '.join(missing)}")
     out = pd.DataFrame(index=raw.index)
-    for column, kind in REQUESTS_SCHEMA.items():
+    # The contract columns, then the others in file order; the outcome and energy columns came
+    # later, and are typed and checked when the file has them.
+    for column in [*REQUESTS_COLUMNS, *(c for c in raw.columns if c not in REQUESTS_SCHEMA)]:
+        kind = typed.get(column)
         values = raw[column]
+        if kind is None:
+            out[column] = values
+            continue
         if kind == "str":
             out[column] = values.fillna("").astype(str)
             continue
@@ -225,9 +248,6 @@ def read_requests_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
                 f"expected {'an integer' if kind == 'int' else 'a number'}, got {values.iloc[row]!r}"
             )
         out[column] = numbers.astype("int64" if kind == "int" else "float64")
-    for column in raw.columns:
-        if column not in REQUESTS_SCHEMA:
-            out[column] = raw[column]
     _check_requests_values(out, file)
     return out
 
@@ -241,6 +261,11 @@ def _first_bad(file: Path, mask: pd.Series, column: str, frame: pd.DataFrame, wh
 
 
 def _check_requests_values(frame: pd.DataFrame, file: Path) -> None:
+    if "end_reason" in frame.columns:
+        _first_bad(file, ~frame["end_reason"].isin(END_REASONS), "end_reason", frame,
+                   f"expected one of {', '.join(END_REASONS)}")
+    if "lost" in frame.columns:
+        _first_bad(file, frame["lost"] < 0, "lost", frame, "expected a count >= 0")
     _first_bad(file, frame["method"] == "", "method", frame, "method name is empty")
     _first_bad(file, ~frame["phase"].isin(PHASES), "phase", frame, "expected 'train' or 'test'")
     for column in ("latency_s", "target_s"):

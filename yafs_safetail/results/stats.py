@@ -18,6 +18,7 @@ import pandas as pd
 
 from yafs_safetail.methods.registry import SAFETAIL, sort_methods
 from yafs_safetail.results.files import (
+    END_REASON_RATE_COLUMNS,
     PERCENTILES,
     PHASES,
     REQUESTS_COLUMNS,
@@ -47,6 +48,23 @@ def _window_means(values: np.ndarray, window: int) -> np.ndarray:
     return np.array([values[i:i + window].mean() for i in range(0, len(values), window)])
 
 
+def _end_rates(part: pd.DataFrame) -> dict[str, float]:
+    """The share of each way a method's requests ended, and their mean energy.
+
+    A requests table from before ``end_reason`` (no failures then) ended every request with a
+    reply or, when every copy was refused, with the fallback; it has no energy (NaN).
+    """
+    if "end_reason" in part.columns:
+        reasons = part["end_reason"].to_numpy()
+        rates = {column: float(np.mean(reasons == reason)) for reason, column in END_REASON_RATE_COLUMNS.items()}
+    else:
+        fallback = float(part["fallback"].to_numpy(dtype=float).mean())
+        rates = {"success_rate": 1.0 - fallback, "all_refused_rate": fallback,
+                 "all_lost_rate": 0.0, "timeout_rate": 0.0}
+    energy = part["energy_j"].to_numpy(dtype=float).mean() if "energy_j" in part.columns else math.nan
+    return {**rates, "energy_j_per_request": float(energy)}
+
+
 def summarize(requests: pd.DataFrame, preset: str = "", beta: int | None = None) -> pd.DataFrame:
     """Per-method statistics of the test phase.
 
@@ -64,7 +82,9 @@ def summarize(requests: pd.DataFrame, preset: str = "", beta: int | None = None)
         One row per method with a test row, in report order, columns ``SUMMARY_COLUMNS``.
         Percentiles are numpy's linear interpolation; ``target_met_rate`` is the share of
         requests with latency <= target; ``mean_abs_reward`` ignores NaN rewards (NaN when the
-        method records none).
+        method records none); ``success_rate``, ``all_refused_rate``, ``all_lost_rate`` and
+        ``timeout_rate`` are the shares of each ``end_reason``, ``energy_j_per_request`` the mean
+        ``energy_j`` (docs/failures_energy.md).
     """
     _require_columns(requests, REQUESTS_COLUMNS, "requests table")
     test = requests[requests["phase"] == "test"]
@@ -102,6 +122,7 @@ def summarize(requests: pd.DataFrame, preset: str = "", beta: int | None = None)
             "min_window_n_selected": float(windows.min()),
             "max_window_n_selected": float(windows.max()),
             "thin_percentiles": thin_percentiles_text(len(part)),
+            **_end_rates(part),
         })
     frame = pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
     return frame.astype({"n_requests": "int64", "min_n_selected": "int64",
