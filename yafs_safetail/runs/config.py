@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -73,6 +74,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ExperimentError", "Task", "WorldSetup", "WORLD_OVERRIDES", "LearnerOverrides", "Output",
+    "LATER_RESULT_FIELDS", "PROBABILITY_BELOW_ONE",
     "ExperimentConfig", "GROUPS", "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS",
     "add_options", "config_from_args", "check_config", "learner_overrides", "learner_config",
     # From runs.settings.
@@ -83,6 +85,23 @@ __all__ = [
 
 class ExperimentError(ValueError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
+
+
+def _probability_below_one(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}") from None
+    if not 0.0 <= value < 1.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}")
+    return value
+
+
+#: A server's stationary unavailability: 1 would be a server that is never up.
+PROBABILITY_BELOW_ONE = Check(
+    "a probability in [0, 1)",
+    lambda v: not isinstance(v, bool) and isinstance(v, float | int) and math.isfinite(v) and 0 <= v < 1,
+    _probability_below_one)
 
 
 # ----------------------------------------------------------------------------- the groups
@@ -143,6 +162,34 @@ class WorldSetup:
         "world's; docs/deviations.md D11)", check=one_of(TARGET_COMPUTES), optional=True)
 
 
+    # Failures and energy (beyond the paper; docs/failures_energy.md). None everywhere: no
+    # server fails, no time-out, and the energy models' cited defaults.
+    failure_mttf_s: float | None = setting(
+        None, "each server's mean time to failure in seconds (exponential up and down times, "
+        "each server starting in its stationary state; default: servers never fail)",
+        check=POSITIVE_NUMBER, optional=True)
+    failure_mttr_s: float | None = setting(
+        None, "each server's mean time to repair in seconds (default: edge.failures.DEFAULT_MTTR_S, "
+        "one load-trace minute)", check=POSITIVE_NUMBER, optional=True)
+    failure_probability: float | None = setting(
+        None, "each server's stationary probability of being down (sets the mean time to failure "
+        "from the mean time to repair; not with --failure-mttf-s; 0: no random failures)",
+        check=PROBABILITY_BELOW_ONE, optional=True)
+    down_intervals: Path | None = setting(
+        None, "a CSV of scripted outages, header server,down_s,up_s (server index from 0, seconds "
+        "from the phase's start), added to the random ones", optional=True)
+    timeout_s: float | None = setting(
+        None, "how long the user waits for a first reply before the on-device fallback, in seconds "
+        "(default: with failures, the world's worst-case latency of a live copy; without, none)",
+        check=POSITIVE_NUMBER, optional=True)
+    server_idle_w: float | None = setting(
+        None, "a server's power with no request running, in watts (default: edge.energy's "
+        "ASSUMED_IDLE_POWER_W)", check=NON_NEGATIVE_NUMBER, optional=True)
+    server_max_w: float | None = setting(
+        None, "a server's power at its load limit, in watts (default: edge.energy's "
+        "I7_11700_BASE_POWER_W, the paper's server CPU)", check=NON_NEGATIVE_NUMBER, optional=True)
+
+
 #: The world's own settings a run may override (WorldSettings fields of the same name).
 WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute")
 
@@ -158,6 +205,21 @@ class LearnerOverrides:
         None, "Adam's learning rate for SafeTail instead of the preset's (e.g. the paper preset's "
         "network with tuned's 1e-3); the run is then no longer the preset's, and run.json and "
         "summary.md say so", check=POSITIVE_NUMBER, optional=True)
+    energy_price_per_j: float | None = setting(
+        None, "beyond the paper: subtract this price times a request's energy (J) from SafeTail's "
+        "Eq. 5 reward (default 0: the paper's reward; docs/deviations.md D15)",
+        check=NON_NEGATIVE_NUMBER, optional=True)
+    failure_penalty: float | None = setting(
+        None, "beyond the paper: subtract this from SafeTail's Eq. 5 reward for every request that "
+        "did not end with a reply (default 0; docs/deviations.md D15)",
+        check=NON_NEGATIVE_NUMBER, optional=True)
+
+
+#: Result fields added after run ids were first recorded: a run id leaves each out while it is
+#: at its default (None), so every configuration that does not use them keeps its id.
+LATER_RESULT_FIELDS: tuple[str, ...] = (
+    "failure_mttf_s", "failure_mttr_s", "failure_probability", "down_intervals", "timeout_s",
+    "server_idle_w", "server_max_w", "energy_price_per_j", "failure_penalty")
 
 
 @dataclass(frozen=True)

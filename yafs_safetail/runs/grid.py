@@ -39,7 +39,12 @@ import yafs_safetail
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.registry import UserMethod
-from yafs_safetail.runs.config import GRID_RUNTIME_FIELDS, RESULT_FIELDS, ExperimentConfig
+from yafs_safetail.runs.config import (
+    GRID_RUNTIME_FIELDS,
+    LATER_RESULT_FIELDS,
+    RESULT_FIELDS,
+    ExperimentConfig,
+)
 from yafs_safetail.runs.config import RUNTIME_FIELDS as RUNTIME_FIELDS  # (re-exported)
 
 #: Hex digits of a run id: 48 bits, so two configurations of one campaign never share one.
@@ -128,7 +133,10 @@ def identity(settings: Mapping[str, Any]) -> dict[str, Any]:
     defaults = ExperimentConfig()
     full: dict[str, Any] = {}
     for name in RESULT_FIELDS:
-        value = settings.get(name, _json_value(getattr(defaults, name)))
+        default = _json_value(getattr(defaults, name))
+        value = settings.get(name, default)
+        if name in LATER_RESULT_FIELDS and value == default:
+            continue  # a field added later is hashed only when set: earlier ids stay
         if name in PATH_FIELDS and value is not None:
             value = file_identity(Path(value))
         elif name == "methods":

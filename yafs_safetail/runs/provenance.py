@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -14,6 +16,7 @@ from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
 
 if TYPE_CHECKING:
+    from yafs_safetail.edge.phase_world import EdgeWorld
     from yafs_safetail.runs.experiment import ExperimentConfig, _Inputs
 
 #: ``run.json`` keys of the run itself that a learner's fields replace: the run's preset and β
@@ -44,6 +47,28 @@ def learners_fields(learners: Sequence[LearningPolicy]) -> dict[str, Any]:
     return merged
 
 
+def failures_and_energy(world: EdgeWorld) -> dict[str, Any]:
+    """``run.json``'s ``failures`` and ``energy`` entries: the settings the world was drawn with
+    (the time-out as the user waits it, None when it never gives up) and the power models."""
+    failures = world.failures
+    down_file = failures.down_file
+    return {
+        "failures": {
+            "enabled": failures.enabled,
+            "mttf_s": failures.mttf_s,
+            "mttr_s": failures.mttr_s,
+            "unavailability": failures.unavailability,
+            "down_file": None if down_file is None else recorded_path(down_file),
+            "timeout_s": None if math.isinf(world.timeout_s) else world.timeout_s,
+        },
+        "energy": {
+            "server": {**dataclasses.asdict(world.energy.server),
+                       "per_process_w": world.energy.server.per_process_w},
+            "radio": dataclasses.asdict(world.energy.radio),
+        },
+    }
+
+
 def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[LearningPolicy],
                  methods: list[str]) -> results.RunMetadata:
     """The run's ``run.json`` (its learners trained, every method named in ``methods``).
@@ -60,6 +85,7 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
         "fallback_latency_s": test_world.fallback_latency_s,
         "nu": test_world.nu,
         "world": test_world.settings.to_dict(),
+        **failures_and_energy(test_world),
         results.PLACEMENT_KEY: recorded_path(Path(config.placement)),
         # Only when set, as learning_rate_override: summary.md scores no closeness to the
         # paper in a world the run's options changed.

@@ -2,7 +2,8 @@
 
 The experiment (``runs.experiment``) and the Gymnasium environment (``sim.env``) both make their
 worlds here, so a setting that changes the world (the preset's world, ``--target-latency-s``,
-``--load-peak-users``, ``--target-compute``, the topology...) changes it the same way in both.
+``--load-peak-users``, ``--target-compute``, the topology, the failures and power models...)
+changes it the same way in both.
 """
 
 from __future__ import annotations
@@ -12,7 +13,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.edge.calibration import CalibrationError, WorldSettings, world_settings
+from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
+from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings, read_down_file
 from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase, get_use_case
@@ -46,6 +50,9 @@ class WorldRecipe:
         full_preset: the learner preset at full budget.
         learner: the learner of this run (its training budget and hyperparameter overrides).
         test_steps: the test phase's requests.
+        failures: which servers fail and the user's time-out (``edge.failures``).
+        energy: the servers' and the device's power models (``edge.energy``).
+        step_interval_s: time between two requests (the outages are drawn over the phase).
     """
 
     use_case: UseCase
@@ -56,6 +63,9 @@ class WorldRecipe:
     learner: LearnerConfig
     test_steps: int
     overrides: dict[str, Any] = field(default_factory=dict)
+    failures: FailureSettings = field(default_factory=FailureSettings)
+    energy: EnergyModel = field(default_factory=EnergyModel)
+    step_interval_s: float = DEFAULT_STEP_INTERVAL_S
 
     def n_steps(self, phase: str) -> int:
         """The requests of ``phase`` (``"train"``: the learner's budget; else the test's)."""
@@ -64,7 +74,49 @@ class WorldRecipe:
     def make_world(self, phase: str, seed: int) -> EdgeWorld:
         """The world of ``phase`` drawn from ``seed`` (every method of the phase replays it)."""
         return build_world(self.scenario, self.use_case, self.inputs, self.n_steps(phase), seed=seed,
-                           phase=phase, episode_steps=self.learner.episode_steps, settings=self.settings)
+                           phase=phase, episode_steps=self.learner.episode_steps, settings=self.settings,
+                           failures=self.failures, energy=self.energy,
+                           step_interval_s=self.step_interval_s)
+
+
+def failure_settings(config: ExperimentConfig, n_servers: int, style: str = "option") -> FailureSettings:
+    """The run's failures from its options (the down-intervals file read once, to check it).
+
+    Raises:
+        ExperimentError: ``--failure-probability`` together with ``--failure-mttf-s``.
+        FailureFileError: a bad down-intervals file (one line: file, row, field).
+    """
+    def label(name: str) -> str:
+        return f"--{name.replace('_', '-')}" if style == "option" else name
+
+    mttr_s = DEFAULT_MTTR_S if config.failure_mttr_s is None else float(config.failure_mttr_s)
+    if config.failure_probability is not None and config.failure_mttf_s is not None:
+        raise ExperimentError(f"{label('failure_probability')}: give it or {label('failure_mttf_s')}, "
+                              "not both (the probability sets the mean time to failure)")
+    if config.failure_probability is not None:
+        settings = FailureSettings.for_unavailability(float(config.failure_probability), mttr_s,
+                                                      config.timeout_s)
+    else:
+        settings = FailureSettings(mttf_s=config.failure_mttf_s, mttr_s=mttr_s, timeout_s=config.timeout_s)
+    if config.down_intervals is not None:
+        read_down_file(Path(config.down_intervals), n_servers)  # bad input: one line, before any draw
+        settings = dataclasses.replace(settings, down_file=Path(config.down_intervals))
+    return settings
+
+
+def energy_model(config: ExperimentConfig, style: str = "option") -> EnergyModel:
+    """The run's power models: the cited defaults, with ``--server-idle-w``/``--server-max-w``.
+
+    Raises:
+        ExperimentError: a maximum power below the idle power.
+    """
+    default = ServerPowerModel()
+    idle_w = default.idle_w if config.server_idle_w is None else float(config.server_idle_w)
+    max_w = default.max_w if config.server_max_w is None else float(config.server_max_w)
+    if max_w < idle_w:
+        name = "--server-max-w" if style == "option" else "server_max_w"
+        raise ExperimentError(f"{name}: {max_w:g} W is below the idle power {idle_w:g} W")
+    return EnergyModel(server=ServerPowerModel(idle_w=idle_w, max_w=max_w))
 
 
 def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe:
@@ -100,7 +152,9 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
         settings = changed
     return WorldRecipe(use_case=use_case, inputs=inputs, scenario=scenario, settings=settings,
                        full_preset=full, learner=learner,
-                       test_steps=scaled_steps(full.test_steps, config.steps_scale), overrides=overrides)
+                       test_steps=scaled_steps(full.test_steps, config.steps_scale), overrides=overrides,
+                       failures=failure_settings(config, scenario.n_servers, style),
+                       energy=energy_model(config, style), step_interval_s=config.step_interval_s)
 
 
 def make_world(config: ExperimentConfig, phase: str, seed: int | None = None) -> EdgeWorld:
