@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from yafs_safetail.edge.failures import END_REPLY
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
@@ -22,6 +23,7 @@ from yafs_safetail.methods.safetail.reward import (
     REWARDS,
     copy_price,
     latency_score,
+    priced_reward,
 )
 from yafs_safetail.methods.safetail.spaces import (
     StateScales,
@@ -132,19 +134,29 @@ class SafeTailPolicy(LearningPolicy):
 
     def feedback(self, outcome: RequestRecord) -> RequestRecord:
         state, action, epsilon, price = self._decisions.pop(outcome.step)
+        config = self.learner.config
         if self._reward is None:
             # reward_latency_cost, from the score the network learns and the price of the copies.
-            learned = latency_score(outcome.latency_s, outcome.target_s)
+            learned = self._priced(latency_score(outcome.latency_s, outcome.target_s), outcome)
             value = learned - price
         else:
-            value = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
-                                 self.learner.config.delta)
+            value = self._priced(self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers),
+                                              self.n_servers, config.delta), outcome)
             learned = value
         if self.training:
             started = time.perf_counter()
             self.learner.observe(state, action, learned)
             self.training_time_s += time.perf_counter() - started
         return dataclasses.replace(outcome, reward=value, epsilon=epsilon)
+
+    def _priced(self, base: float, outcome: RequestRecord) -> float:
+        """The reward less the energy and failure prices the learner was given (D15; both 0:
+        ``base`` itself)."""
+        config = self.learner.config
+        if not (config.energy_price_per_j or config.failure_penalty):
+            return base
+        return priced_reward(base, outcome.energy_j, outcome.end_reason == END_REPLY,
+                             config.energy_price_per_j, config.failure_penalty)
 
     # -- LearningPolicy: what a run asks of every learning method -------------------------
 

@@ -97,6 +97,10 @@ class LearnerConfig:
             initial weights, trained on the same minibatches) predict each action's value;
             decisions use the mean of their predictions, meant to vary less from seed to seed
             than one network's (D13 measures it). The §III objective has one network.
+        energy_price_per_j: subtracted from the reward per joule the request's copies cost
+            (beyond the paper, D15; 0: Eq. 5).
+        failure_penalty: subtracted from the reward of a request that ended without a reply
+            (beyond the paper, D15; 0: Eq. 5).
     """
 
     name: str
@@ -121,6 +125,8 @@ class LearnerConfig:
     updates_per_round: int = 1
     objective: str = "target-vector"
     n_networks: int = 1
+    energy_price_per_j: float = 0.0
+    failure_penalty: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "hidden_widths", tuple(int(w) for w in self.hidden_widths))
@@ -138,6 +144,10 @@ class LearnerConfig:
                 f"LearnerConfig.epsilon_min ({self.epsilon_min}) exceeds epsilon_start "
                 f"({self.epsilon_start})"
             )
+        for field in ("energy_price_per_j", "failure_penalty"):
+            value = getattr(self, field)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"LearnerConfig.{field} must be finite and >= 0, got {value!r}")
         positive_ints = ("kappa", "episode_steps", "n_episodes", "beta", "train_steps",
                          "test_steps", "replay_capacity", "epochs_per_round", "batch_size",
                          "updates_per_round", "n_networks")
@@ -181,9 +191,16 @@ class LearnerConfig:
         return self.train_steps // self.kappa
 
     def to_dict(self) -> dict[str, object]:
-        """Plain-JSON form (tuples become lists)."""
+        """Plain-JSON form (tuples become lists).
+
+        The reward's prices (D15) are written only when set, so the files of every learner
+        that does not use them are what they were before them.
+        """
         data = dataclasses.asdict(self)
         data["hidden_widths"] = list(self.hidden_widths)
+        for name in ("energy_price_per_j", "failure_penalty"):
+            if data[name] == 0.0:
+                del data[name]
         return data
 
     @classmethod

@@ -138,6 +138,32 @@ def reward_latency_cost(latency_s: float, target_s: float, jobs_on_chosen: int) 
     return latency_score(latency_s, target_s) - copy_price(jobs_on_chosen)
 
 
+def priced_reward(base: float, energy_j: float, replied: bool, energy_price_per_j: float = 0.0,
+                  failure_penalty: float = 0.0) -> float:
+    """A reward less the request's energy and failure prices: not the paper's (D15).
+
+    ``base - energy_price_per_j * energy_j - failure_penalty * (not replied)``. With both prices
+    0 it returns ``base`` itself (Eq. 5 exactly, whatever ``energy_j`` is).
+
+    Args:
+        base: the reward before the prices (Eq. 5, or the latency score).
+        energy_j: what the request's copies cost: servers and the device's radio, joules.
+        replied: whether the request ended with a reply within the time-out.
+        energy_price_per_j: reward units per joule, >= 0.
+        failure_penalty: reward units for a request that ended without a reply, >= 0.
+    """
+    if energy_price_per_j < 0 or failure_penalty < 0:
+        raise ValueError(f"prices must be >= 0, got {energy_price_per_j!r} and {failure_penalty!r}")
+    value = base
+    if energy_price_per_j:
+        if not math.isfinite(energy_j):
+            raise ValueError(f"energy_j must be finite to be priced, got {energy_j!r}")
+        value -= energy_price_per_j * energy_j
+    if failure_penalty and not replied:
+        value -= failure_penalty
+    return value
+
+
 #: The Eq. 5-shaped rewards a SafeTail policy can be trained with, by name (``"paper"`` = Eq. 5).
 REWARDS = {"paper": reward, "no-free-miss": reward_no_free_miss}
 #: Every reward name: those of :data:`REWARDS` and ``"latency-cost"``
