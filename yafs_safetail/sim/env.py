@@ -13,7 +13,9 @@ first reply. SafeTail trained through this environment gives the same records an
 ``run_usecase.py`` (tested). Its world comes from the same recipe as the experiment's
 (``runs.world_recipe``), so it takes the same world options: ``target_latency_s``,
 ``load_peak_users`` and ``target_compute`` as ``--target-latency-s``, ``--load-peak-users`` and
-``--target-compute``.
+``--target-compute``, and the failures and power models (``failure_mttf_s``, ``failure_mttr_s``,
+``failure_probability``, ``down_intervals``, ``timeout_s``, ``server_idle_w``, ``server_max_w``;
+docs/failures_energy.md).
 
 Spaces:
 
@@ -29,7 +31,9 @@ Spaces:
   ``gamma`` (absent when the use case has no Γ, UC1), ``user_location``, ``user_uplink_bps``,
   ``user_downlink_bps``. ``observation="vector"`` gives SafeTail's scaled state vector
   (``encode_state``) instead, ready for an MLP.
-- **reward**: Eq. 5 with the preset's δ (always <= 0).
+- **reward**: Eq. 5 with the preset's δ (always <= 0), less ``energy_price_per_j`` × the
+  request's energy and ``failure_penalty`` when it ended without a reply (both 0 by default:
+  Eq. 5 exactly; docs/deviations.md D15).
 - **episode**: α_s requests (the world's background load is drawn per episode of α_s steps);
   the last step of an episode returns ``truncated=True`` (a time limit: the task itself never
   terminates, so ``terminated`` is always False). ``reset()`` without a seed continues with
@@ -38,7 +42,10 @@ Spaces:
 
 ``info`` carries ``observation`` (the :class:`Observation`, for policies written against it)
 and, after a step, ``record``: the request's :class:`~yafs_safetail.record.RequestRecord`
-(latency, target, refusals, the winning copy's Eq. 1 parts, the reward).
+(latency, target, refusals, the winning copy's Eq. 1 parts, the reward), ``end_reason`` (why
+the request ended: ``"reply"``, ``"all_refused"``, ``"all_lost"``, ``"timeout"``) and ``energy_j``
+(what its copies cost). The observation says nothing of failures: an agent learns of them only
+through these, as SafeTail does through its records.
 """
 
 from __future__ import annotations
@@ -51,12 +58,13 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from yafs_safetail.edge.failures import END_REPLY
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.methods.policy import Policy
-from yafs_safetail.methods.safetail.reward import reward
+from yafs_safetail.methods.safetail.reward import priced_reward, reward
 from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, n_actions, subset_of
 from yafs_safetail.record import PHASES, RequestRecord
 from yafs_safetail.runs.config import ExperimentConfig
@@ -112,6 +120,16 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
             (``--load-peak-users``; None: the preset world's).
         target_compute: C(s_j) of Eq. 4, ``"request"`` or ``"trace_median"``
             (``--target-compute``; None: the preset world's).
+        failure_mttf_s: each server's mean time to failure (``--failure-mttf-s``; None: none).
+        failure_mttr_s: each server's mean time to repair (``--failure-mttr-s``).
+        failure_probability: each server's stationary down probability (``--failure-probability``).
+        down_intervals: a CSV of scripted outages (``--down-intervals``).
+        timeout_s: how long the user waits for a reply (``--timeout-s``).
+        server_idle_w: a server's idle power (``--server-idle-w``).
+        server_max_w: a server's power at its load limit (``--server-max-w``).
+        energy_price_per_j: subtracted per joule from the reward (``--energy-price-per-j``).
+        failure_penalty: subtracted from the reward of a request without a reply
+            (``--failure-penalty``).
 
     Raises:
         ValueError: a bad argument or input file (one line naming it).
@@ -135,6 +153,15 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         target_latency_s: float | None = None,
         load_peak_users: float | None = None,
         target_compute: str | None = None,
+        failure_mttf_s: float | None = None,
+        failure_mttr_s: float | None = None,
+        failure_probability: float | None = None,
+        down_intervals: str | Path | None = None,
+        timeout_s: float | None = None,
+        server_idle_w: float | None = None,
+        server_max_w: float | None = None,
+        energy_price_per_j: float | None = None,
+        failure_penalty: float | None = None,
     ) -> None:
         if phase not in PHASES:
             raise ValueError(f"phase: expected one of {PHASES}, got {phase!r}")
@@ -147,7 +174,11 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
             use_case=use_case, preset=preset, steps_scale=steps_scale, topology=Path(topology),
             placement=Path(placement), traces_dir=Path(traces_dir), step_interval_s=step_interval_s,
             target_latency_s=target_latency_s, load_peak_users=load_peak_users,
-            target_compute=target_compute), style="field")
+            target_compute=target_compute, failure_mttf_s=failure_mttf_s, failure_mttr_s=failure_mttr_s,
+            failure_probability=failure_probability,
+            down_intervals=None if down_intervals is None else Path(down_intervals), timeout_s=timeout_s,
+            server_idle_w=server_idle_w, server_max_w=server_max_w,
+            energy_price_per_j=energy_price_per_j, failure_penalty=failure_penalty), style="field")
         self.use_case = self._recipe.use_case
         self.learner_config = self._recipe.learner
         self.phase = phase
@@ -213,6 +244,10 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
                 f"request {self._step} did not complete within step_interval_s={self.step_interval_s}"
             )
         value = reward(record.latency_s, record.target_s, len(subset), self.n_servers, self.delta)
+        prices = self.learner_config
+        if prices.energy_price_per_j or prices.failure_penalty:
+            value = priced_reward(value, record.energy_j, record.end_reason == END_REPLY,
+                                  prices.energy_price_per_j, prices.failure_penalty)
         record = dataclasses.replace(record, reward=value)
         self._step += 1
         truncated = self._step % self.episode_steps == 0 or self._step >= self.world.n_steps
@@ -220,7 +255,8 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         if self._step < self.world.n_steps:
             self._observation = self._observe()
         assert self._observation is not None
-        info = {"observation": self._observation, "record": record}
+        info = {"observation": self._observation, "record": record,
+                "end_reason": record.end_reason, "energy_j": record.energy_j}
         return self._encode(self._observation), value, False, truncated, info
 
     # ----------------------------------------------------------------------------- helpers
