@@ -53,6 +53,8 @@ FIGURE_STEMS: dict[str, str] = {
     "e": "fig_e_access_rate",
     "f": "fig_f_latency_deviation",
     "g": "fig_g_abs_reward",
+    # Beyond the paper: what each method's tail costs in energy (docs/failures_energy.md).
+    "energy": "p99_vs_energy",
 }
 PNG_DPI = 150
 
@@ -202,6 +204,24 @@ def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, panel
     return figure
 
 
+def _p99_against_energy(summary: pd.DataFrame, run: RunMetadata) -> Figure:
+    """Each method's p99 latency against its mean energy per request (test phase)."""
+    figure, axes = _new_figure(run, "p99 latency against energy per request")
+    present = list(summary["method"])
+    own = _own_methods(present)
+    energy = summary["energy_j_per_request"].to_numpy(dtype=float)
+    if not np.isfinite(energy).any():
+        axes.set_title(axes.get_title() + "\n(no energy columns: written before them)", fontsize=7)
+    for method, energy_j, p99_s in zip(present, energy, summary["p99_s"], strict=True):
+        if np.isfinite(energy_j):
+            axes.scatter(energy_j, p99_s, s=22, color=_colour(method, own), label=method, zorder=3)
+            axes.annotate(method, (energy_j, p99_s), textcoords="offset points", xytext=(3, 3), fontsize=6)
+    axes.set_xlabel("energy per request (J): servers' copies + the device's radio")
+    axes.set_ylabel("p99 latency (s)")
+    axes.margins(0.15)
+    return figure
+
+
 def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
     """Read and check what the figures need from a results folder.
 
@@ -223,14 +243,14 @@ def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame,
 
 
 def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]:
-    """Build panels (a)-(g) in memory, without writing anything.
+    """Build panels (a)-(g) and the p99-against-energy figure in memory, without writing anything.
 
     Args:
         requests: a checked requests table (see :func:`read_figure_inputs`).
         run: the run's metadata.
 
     Returns:
-        Panel letter ("a".."g") to its matplotlib Figure (on an Agg canvas).
+        Panel letter ("a".."g", and "energy") to its matplotlib Figure (on an Agg canvas).
     """
     summary = results.summarize(requests, preset=run.preset, beta=run.beta)
     boundary = results.train_test_boundary(requests, run.beta)
@@ -245,6 +265,7 @@ def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]
                                     "average target − latency (s)", zero_line=True)
         built["g"] = _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
                                     run, "g", "SafeTail |reward|", "average |reward|")
+        built["energy"] = _p99_against_energy(summary, run)
     return built
 
 
@@ -254,7 +275,7 @@ def draw_figures(
     run: RunMetadata | None = None,
     formats: Sequence[str] = DEFAULT_FIGURE_FORMATS,
 ) -> list[Path]:
-    """Draw panels (a)-(g) into ``directory/figures`` in each of ``formats``.
+    """Draw panels (a)-(g) and ``p99_vs_energy`` into ``directory/figures`` in each of ``formats``.
 
     Args:
         directory: the results folder.
