@@ -115,16 +115,19 @@ class CopyFates:
         server_energy_j: the servers' marginal energy of every copy (per process power x the
             time it computed).
         radio_energy_j: the device's radio: every copy's upload, every received reply's download.
+        server_energy_by_server_j: ``server_energy_j`` split by server index.
     """
 
-    __slots__ = ("lost", "lost_on_arrival", "server_energy_j", "radio_energy_j")
+    __slots__ = ("lost", "lost_on_arrival", "server_energy_j", "radio_energy_j",
+                 "server_energy_by_server_j")
 
     def __init__(self, lost: int, lost_on_arrival: int, server_energy_j: float,
-                 radio_energy_j: float) -> None:
+                 radio_energy_j: float, server_energy_by_server_j: list[float]) -> None:
         self.lost = lost
         self.lost_on_arrival = lost_on_arrival
         self.server_energy_j = server_energy_j
         self.radio_energy_j = radio_energy_j
+        self.server_energy_by_server_j = server_energy_by_server_j
 
 
 class EdgeModel:
@@ -280,6 +283,7 @@ class EdgeModel:
         :meth:`forget_request`)."""
         lost = lost_on_arrival = 0
         server_energy_j = radio_energy_j = 0.0
+        by_server = [0.0] * self.n_servers
         radio = self._radio
         for state in self._copies.get(request_id, ()):
             if state is None:
@@ -290,8 +294,10 @@ class EdgeModel:
                 lost_on_arrival += state.lost_on_arrival
             elif not state.refused:
                 radio_energy_j += radio.download_energy_j(self._output_bytes[state.step], state.output_s)
-            server_energy_j += self._per_process_w * state.served_s
-        return CopyFates(lost, lost_on_arrival, server_energy_j, radio_energy_j)
+            copy_energy_j = self._per_process_w * state.served_s
+            by_server[state.server] = copy_energy_j
+            server_energy_j += copy_energy_j
+        return CopyFates(lost, lost_on_arrival, server_energy_j, radio_energy_j, by_server)
 
     def server_energy_totals_j(self, now_s: float) -> list[float]:
         """Each server's marginal energy of our copies up to ``now_s``, from the integral of
