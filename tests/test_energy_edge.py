@@ -168,3 +168,23 @@ def test_the_failure_benchmark_small_budget():
     lines = done.stdout.splitlines()
     assert lines[-1].startswith("max_rel_error=") and float(lines[-1].split("=")[1]) <= 0.12
     assert sum(1 for line in lines if "p^k inside" in line or "p^k outside" in line) == 5
+
+
+def test_p99_against_energy_figure_plots_each_method_at_its_summary_point():
+    import pandas as pd
+    from test_results import make_requests, make_run
+
+    from yafs_safetail import figures, results
+
+    requests = make_requests(np.random.default_rng(5), n_train=20, n_test=30)
+    rng = np.random.default_rng(6)
+    requests = requests.assign(end_reason="reply", lost=0, server_energy_j=rng.uniform(5, 40, len(requests)),
+                               radio_energy_j=0.5, saved_energy_j=0.0)
+    requests["energy_j"] = requests["server_energy_j"] + requests["radio_energy_j"]
+    built = figures.build_figures(requests, make_run(use_case=1, beta=10))
+    axes = built["energy"].axes[0]
+    summary = results.summarize(requests)
+    points = pd.DataFrame([c.get_offsets()[0] for c in axes.collections], columns=["energy", "p99"])
+    assert len(points) == len(summary)
+    np.testing.assert_allclose(sorted(points["energy"]), sorted(summary["energy_j_per_request"]))
+    assert "no energy columns" not in axes.get_title()

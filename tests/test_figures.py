@@ -65,11 +65,13 @@ def test_figure_contents():
     run = make_run(use_case=2, beta=20)
     run.preset = "tuned"
     built = figures.build_figures(requests, run)
-    assert sorted(built) == list("abcdefg")
+    assert set(built) == {*"abcdefg", "energy"}
     for panel, figure in built.items():
         title = figure.axes[0].get_title()
-        assert title.startswith(f"({panel})")
+        assert title.startswith(f"({panel})" if panel != "energy" else "p99 latency against energy")
         assert "use case 2" in title and "preset tuned" in title
+    # A requests table without energy columns (written before them): the figure says so.
+    assert "no energy columns" in built["energy"].axes[0].get_title()
     legend = {t.get_text() for t in built["a"].axes[0].get_legend().get_texts()}
     assert legend == {"SafeTail", "Oracle", "Rand-1", "MinLoad-1", "MinProp-1", "average target"}
     target_line = built["a"].axes[0].get_lines()[0]
@@ -92,7 +94,7 @@ def test_cli_redraws(drawn_folder):
     folder, _ = drawn_folder
     done = run_cli(str(folder))
     assert done.returncode == 0, done.stderr
-    assert "wrote 7 files" in done.stdout  # PNG only unless asked
+    assert "wrote 8 files" in done.stdout  # PNG only unless asked
 
 
 def _break_column(folder):
