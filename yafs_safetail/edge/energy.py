@@ -12,7 +12,7 @@ Radio (the user's device): ``P = alpha_w_per_bps * rate + beta_w`` while a trans
 air, uplink and downlink with their own slopes (Huang et al., MobiSys 2012, WiFi), so a
 transfer of ``b`` bits at rate ``r`` costs ``alpha * b + beta * b / r``.
 
-Sources (docs/energy.md has the table): every use case ran on the paper's one server machine
+Sources (docs/failures_energy.md has the table): every use case ran on the paper's one server machine
 (an Intel Core i7-11700, paper §V-A), so the three use cases share the server model and differ
 in energy through their compute times and payload sizes.
 """
