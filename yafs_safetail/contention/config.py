@@ -3,7 +3,11 @@ it may name besides the traces and topology: an arrivals CSV (:func:`read_arriva
 user's distance conditions (:func:`user_conditions`).
 
 ``contention.world.ContentionWorld`` builds a run's world from these; every name here is also
-importable from ``contention.world``.
+importable from ``contention.world``. It also names what a run is scored against
+(:data:`TARGETS`) and what its summary row holds (:data:`SUMMARY_COLUMNS`).
+
+Only light modules at import (NumPy loads when an input is read): the sweep commands declare
+their options with these before anything heavy loads (``tests/test_first_answer.py``).
 """
 
 from __future__ import annotations
@@ -13,18 +17,31 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
+from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.energy import EnergyModel
-from yafs_safetail.edge.failures import FailureSettings
-from yafs_safetail.edge.sampling import phase_seed_sequence
-from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, EdgeScenario
+from yafs_safetail.edge.failure_settings import FailureSettings
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from yafs_safetail.edge.scenario import EdgeScenario
 
 #: Requests drawn per block (memory stays bounded however long the run).
 DEFAULT_BLOCK_REQUESTS = 20_000
 #: How transfers share a server's links (see ``contention.world``'s docstring).
 LINK_MODELS: tuple[str, ...] = ("shared", "at-start")
+#: What a policy's feedback records give as the request's target τ: ``"eq4"``, Eq. 4 (the paper);
+#: ``"observed-load"``, Eq. 4 with its compute term at the servers' load seen when the request
+#: was dispatched (``ContentionWorld.observed_load_target_s``; docs/deviations.md D12).
+TARGETS = ("eq4", "observed-load")
+#: One method's figures over a run (``contention.run.summarise``'s row), in order.
+SUMMARY_COLUMNS: tuple[str, ...] = (
+    "method", "n_requests", "p50_s", "p90_s", "p95_s", "p99_s", "mean_s", "mean_n_selected",
+    "fallback_rate", "refused_per_request", "cancelled_per_request", "server_s_per_request",
+    "success_rate", "energy_j_per_request", "share_all_lost", "share_timeout", "share_all_refused",
+)
 
 
 class ContentionError(ValueError):
@@ -117,6 +134,8 @@ def check_contention_config(config: ContentionConfig) -> None:
 
 def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:
     """``time_s,user`` rows, checked (one-line errors), sorted by time (stable)."""
+    import numpy as np  # here, not at the top: the sweep commands' options import this module
+
     try:
         with open(path, newline="", encoding="utf-8") as handle:
             rows = list(csv.reader(handle))
@@ -146,6 +165,10 @@ def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:
 
 def user_conditions(config: ContentionConfig, scenario: EdgeScenario, known: tuple[int, ...]) -> np.ndarray:
     """Each user's distance condition per server, shape (U, n) (see ``ContentionConfig``)."""
+    import numpy as np  # here, not at the top: the sweep commands' options import this module
+
+    from yafs_safetail.edge.sampling import phase_seed_sequence
+
     topology = np.asarray(scenario.server_conditions, dtype=np.int64)
     choice = config.user_conditions
     if choice == "topology":

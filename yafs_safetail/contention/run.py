@@ -15,6 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# Declared in contention.config, which the sweep commands' options import before NumPy loads.
+from yafs_safetail.contention.config import SUMMARY_COLUMNS as SUMMARY_COLUMNS
+from yafs_safetail.contention.config import TARGETS as TARGETS
 from yafs_safetail.contention.engine import DISPATCH_MODES, EngineResult, RequestOutcome, run_engine
 from yafs_safetail.contention.types import (
     END_ALL_LOST_CODE,
@@ -35,12 +38,6 @@ from yafs_safetail.record import RequestRecord
 
 #: The share of a run's first requests left out of its figures: the servers start empty.
 WARMUP_FRACTION = 0.05
-
-
-#: What a policy's feedback records give as the request's target τ: ``"eq4"``, Eq. 4 (the paper);
-#: ``"observed-load"``, Eq. 4 with its compute term at the servers' load seen when the request
-#: was dispatched (``ContentionWorld.observed_load_target_s``; docs/deviations.md D12).
-TARGETS = ("eq4", "observed-load")
 
 #: The contention world runs every mode its engine does.
 DISPATCH = DispatchSupport("the contention world", DISPATCH_MODES)
@@ -134,13 +131,6 @@ def run_policy(world: ContentionWorld, policy: Policy, *, queue: bool | None = N
     result = run_engine(world.engine_settings(queue, cancel), world.emit_s.tolist(),
                         world.config.block_requests, world.block, PolicyDispatcher(world, policy, target))
     return PolicyRun(policy.name, result, time.perf_counter() - started)
-
-
-SUMMARY_COLUMNS: tuple[str, ...] = (
-    "method", "n_requests", "p50_s", "p90_s", "p95_s", "p99_s", "mean_s", "mean_n_selected",
-    "fallback_rate", "refused_per_request", "cancelled_per_request", "server_s_per_request",
-    "success_rate", "energy_j_per_request", "share_all_lost", "share_timeout", "share_all_refused",
-)
 
 
 def summarise(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> dict[str, float | int | str]:
