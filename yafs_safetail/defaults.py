@@ -47,6 +47,18 @@ def default_placement(topology: Path) -> Path:
 
 #: The learner presets (methods.safetail.presets defines each).
 PRESET_NAMES = ("paper", "paper-literal", "tuned")
+#: The paper learner's method name (its rows' ``method``).
+SAFETAIL = "SafeTail"
+#: What SafeTail's network is trained to output (``LearnerConfig.objective``): §III's target
+#: vector, or each action's value (docs/deviations.md D13).
+OBJECTIVES = ("target-vector", "value")
+#: How SafeTail sends its subset (``SafeTailPolicy``'s ``dispatch``): every copy at once (the
+#: paper), or tied copies cancelled once one starts running.
+SAFETAIL_DISPATCH = ("all", "tied")
+# The sweep commands' options name these three. methods.registry.SAFETAIL,
+# methods.safetail.presets.OBJECTIVES and methods.safetail.policy.SAFETAIL_DISPATCH still
+# define their own copies (those modules load NumPy); tests/test_first_answer.py checks that
+# they match until they import them from here.
 #: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
 #: median scaled to the request's own input (docs/deviations.md D11).
 TARGET_COMPUTES = ("trace_median", "request")

@@ -18,452 +18,58 @@ numbers). One row per (point, method) goes to the point's ``sweep.csv``.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import logging
-import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import pandas as pd
 
-from yafs_safetail.cli import load_list
-from yafs_safetail.contention.run import SUMMARY_COLUMNS, TARGETS, run_policy, summarise
-from yafs_safetail.contention.world import ContentionConfig, ContentionError, ContentionWorld
-from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings
+from yafs_safetail.contention.run import run_policy, summarise
+
+# The sweeps' configuration, declared where the commands' options can read it before anything
+# heavy loads; every name is importable from here too, as before.
+from yafs_safetail.contention.sweep_config import DEFAULT_FAILURE_LOAD as DEFAULT_FAILURE_LOAD
+from yafs_safetail.contention.sweep_config import DEFAULT_FAILURE_METHODS as DEFAULT_FAILURE_METHODS
+from yafs_safetail.contention.sweep_config import DEFAULT_SWEEP_METHODS as DEFAULT_SWEEP_METHODS
+from yafs_safetail.contention.sweep_config import DEFAULT_VALUE_NETWORKS as DEFAULT_VALUE_NETWORKS
+from yafs_safetail.contention.sweep_config import FAILURE_AXIS as FAILURE_AXIS
+from yafs_safetail.contention.sweep_config import FAILURE_LEVELS as FAILURE_LEVELS
+from yafs_safetail.contention.sweep_config import FAILURE_POINT as FAILURE_POINT
+from yafs_safetail.contention.sweep_config import FAILURE_SWEEP_COLUMNS as FAILURE_SWEEP_COLUMNS
+from yafs_safetail.contention.sweep_config import LEARNER_DEFAULTS as LEARNER_DEFAULTS
+from yafs_safetail.contention.sweep_config import LEARNERS as LEARNERS
+from yafs_safetail.contention.sweep_config import LOAD_AXIS as LOAD_AXIS
+from yafs_safetail.contention.sweep_config import LOAD_POINT as LOAD_POINT
+from yafs_safetail.contention.sweep_config import LOADS as LOADS
+from yafs_safetail.contention.sweep_config import METHOD_NAMES as METHOD_NAMES
+from yafs_safetail.contention.sweep_config import ONE_LOAD as ONE_LOAD
+from yafs_safetail.contention.sweep_config import POINT_KINDS as POINT_KINDS
+from yafs_safetail.contention.sweep_config import SAFETAIL_CA as SAFETAIL_CA
+from yafs_safetail.contention.sweep_config import SAFETAIL_LEARNERS as SAFETAIL_LEARNERS
+from yafs_safetail.contention.sweep_config import SWEEP_COLUMNS as SWEEP_COLUMNS
+from yafs_safetail.contention.sweep_config import TEST_REQUESTS as TEST_REQUESTS
+from yafs_safetail.contention.sweep_config import ContentionSweep as ContentionSweep
+from yafs_safetail.contention.sweep_config import FailureSweepConfig as FailureSweepConfig
+from yafs_safetail.contention.sweep_config import SafeTailVariant as SafeTailVariant
+from yafs_safetail.contention.sweep_config import SweepAxis as SweepAxis
+from yafs_safetail.contention.sweep_config import SweepConfig as SweepConfig
+from yafs_safetail.contention.sweep_config import failure_level_list as failure_level_list
+from yafs_safetail.contention.world import ContentionError, ContentionWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline
-from yafs_safetail.methods.safetail.policy import SAFETAIL_DISPATCH, SafeTailPolicy
-from yafs_safetail.methods.safetail.presets import (
-    OBJECTIVES,
-    PRESET_NAMES,
-    get_preset,
-    scaled_steps,
-)
+from yafs_safetail.methods.safetail.policy import SafeTailPolicy
+from yafs_safetail.methods.safetail.presets import get_preset
 from yafs_safetail.results.files import write_text_atomic
-from yafs_safetail.runs.config import (
-    BOOLEAN,
-    POSITIVE_INTEGER,
-    POSITIVE_NUMBER,
-    Check,
-    one_of,
-    setting,
-)
 from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import method_rng
 
 log = logging.getLogger(__name__)
-
-#: The row of each SafeTail learner (``SweepConfig.learners``): the paper's §III learner is
-#: ``SafeTail``; the value learner, which prices its copies by the load they join, is
-#: ``SafeTail-CA`` (contention-aware, beyond the paper: docs/deviations.md D13).
-SAFETAIL_CA = "SafeTail-CA"
-SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "value": SAFETAIL_CA}
-#: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise:
-#: the paper's as the paper has it; the contention-aware one as it was chosen (D13).
-LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "value": ("tuned", "tied")}
-#: Every fixed method of the load sweep (the SafeTails are added unless left out).
-DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
-    "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
-)
-#: Every fixed method of the failure sweep: the x = 3 baselines too, since a third copy is what
-#: survives two servers down at once.
-DEFAULT_FAILURE_METHODS: tuple[str, ...] = (
-    "Oracle", "Rand-1", "Rand-2", "Rand-3", "MinLoad-1", "MinLoad-2", "MinLoad-3",
-    "MinProp-1", "MinProp-2", "MinProp-3", "Hedge", "Tied",
-)
-#: How many networks the value learner averages unless told (``SweepConfig.value_networks``):
-#: chosen on seeds 0-6 over one network, then judged on seeds 19-30 (docs/deviations.md D13).
-DEFAULT_VALUE_NETWORKS = 3
-#: Test requests per point (load or failure level) at steps scale 1.
-TEST_REQUESTS = 20_000
-#: What every point's table ends with: each method's figures and its training budget.
-#: (No wall times: the same seed must give the same file.)
-_ROW_COLUMNS: tuple[str, ...] = (*SUMMARY_COLUMNS, "train_requests")
-#: The load sweep's sweep.csv columns, in order.
-SWEEP_COLUMNS: tuple[str, ...] = ("load", "offered_load", *_ROW_COLUMNS)
-#: The failure sweep's columns, in order (failure_sweep.csv, and each level's sweep.csv).
-FAILURE_SWEEP_COLUMNS: tuple[str, ...] = ("failure_level", "load", "offered_load", *_ROW_COLUMNS)
-#: The failure sweep's offered load unless told: the load sweep's lowest, the one load at which
-#: Oracle's five copies per request leave its queues stable (they grow without bound from 0.3 on,
-#: docs/contention.md), so that a lost request measures failures, not Oracle's own overload.
-DEFAULT_FAILURE_LOAD = 0.1
-
-
-@dataclass(frozen=True)
-class SweepAxis:
-    """What a sweep varies from one point to the next.
-
-    Attributes:
-        column: the table's column holding each point's value.
-        label: the logs' name for it (``load 0.5: ...``).
-        folder: each point's folder prefix (``<folder>-<value>``).
-        kind: each point's campaign run kind (``runs.engines.RUN_KINDS``).
-    """
-
-    column: str
-    label: str
-    folder: str
-    kind: str
-
-
-LOAD_POINT = "load_point"
-FAILURE_POINT = "failure_point"
-LOAD_AXIS = SweepAxis("load", "load", "load", LOAD_POINT)
-FAILURE_AXIS = SweepAxis("failure_level", "failure level", "level", FAILURE_POINT)
-
-
-def _method_names(text: str) -> tuple[str, ...]:
-    """``--methods``: comma-separated method names (checked when the sweep builds them)."""
-    return tuple(name.strip() for name in text.split(",") if name.strip())
-
-
-#: The methods a sweep may be given (any baseline name; checked when the policies are built).
-METHOD_NAMES = Check("comma-separated method names",
-                     lambda v: isinstance(v, tuple) and all(isinstance(m, str) for m in v), _method_names)
-
-
-def _learner_names(text: str) -> tuple[str, ...]:
-    """``--learner``: one or both of OBJECTIVES, comma-separated, in the order given."""
-    names = tuple(name.strip() for name in text.split(",") if name.strip())
-    if not names or len(set(names)) != len(names) or any(name not in OBJECTIVES for name in names):
-        raise argparse.ArgumentTypeError(f"expected distinct names of {', '.join(OBJECTIVES)}, got {text!r}")
-    return names
-
-
-#: SafeTail's learners: distinct names of OBJECTIVES.
-LEARNERS = Check(f"distinct names of {', '.join(OBJECTIVES)}", lambda v: isinstance(v, tuple) and bool(v) and len(
-    set(v)) == len(v) and all(name in OBJECTIVES for name in v), _learner_names)
-#: Offered loads: distinct utilisations in (0, 10).
-LOADS = Check("distinct loads in (0, 10)", lambda v: isinstance(v, tuple) and len(set(v)) == len(v) and all(
-    not isinstance(x, bool) and isinstance(x, float | int) and 0 < x < 10 for x in v), load_list)
-
-
-def _is_load(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, float | int) and 0 < value < 10
-
-
-def _one_load(text: str) -> float:
-    """``--load``: one offered load in (0, 10)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not _is_load(value):
-        raise argparse.ArgumentTypeError(f"expected a load in (0, 10), got {text!r}")
-    return value
-
-
-#: The failure sweep's one offered load.
-ONE_LOAD = Check("a load in (0, 10)", _is_load, _one_load)
-
-
-def _is_failure_level(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, float | int) and 0 <= value < 1
-
-
-def failure_level_list(text: str) -> tuple[float, ...]:
-    """``--failure-levels``: distinct per-server down probabilities in [0, 1), comma-separated,
-    returned ascending (the sweep's points rise)."""
-    try:
-        levels = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
-    if not levels or not all(_is_failure_level(level) for level in levels) or len(set(levels)) != len(levels):
-        raise argparse.ArgumentTypeError(f"expected distinct probabilities in [0, 1), got {text!r}")
-    return tuple(sorted(levels))
-
-
-#: Failure levels: distinct stationary down probabilities in [0, 1).
-FAILURE_LEVELS = Check("distinct probabilities in [0, 1)", lambda v: isinstance(v, tuple) and bool(v) and len(
-    set(v)) == len(v) and all(_is_failure_level(x) for x in v), failure_level_list)
-
-
-@dataclass(frozen=True)
-class SafeTailVariant:
-    """One SafeTail of a sweep, resolved from the sweep's configuration.
-
-    Attributes:
-        name: its rows' method name (``SafeTail`` or ``SafeTail-CA``).
-        learner: its training objective (one of OBJECTIVES).
-        preset: its learner preset.
-        dispatch: how its subset is sent (all at once or tied).
-        reward: the reward it is trained with (the value learner's own ``latency-cost``).
-        n_networks: how many networks' predictions it averages.
-        train_requests: its training requests per point.
-    """
-
-    name: str
-    learner: str
-    preset: str
-    dispatch: str
-    reward: str
-    n_networks: int
-    train_requests: int
-
-    def describe(self) -> str:
-        """One line for the sweep's report: how this SafeTail learns and sends."""
-        networks = f" ({self.n_networks} networks averaged)" if self.n_networks > 1 else ""
-        return (f"preset `{self.preset}`, learner `{self.learner}`{networks}, reward `{self.reward}`, "
-                f"dispatch `{self.dispatch}`")
-
-
-@dataclass(frozen=True)
-class ContentionSweep:
-    """What every sweep shares: the contention world of every point (``base``; what the axis
-    varies, ``phase`` and ``n_requests`` are set per point and phase) and the methods and
-    SafeTails it runs, each field declared once with its help (``runs.config.setting``; the
-    sweep commands derive their options from them). ``learners`` names the SafeTails it trains
-    (:attr:`safetails` resolves each one's preset, dispatch and reward). The value learner has
-    its own reward (``"latency-cost"``), so ``reward`` is the paper learner's and stays
-    ``"paper"`` when the value learner runs alone (docs/deviations.md D13).
-
-    A sweep is one of the subclasses, which say what the axis is (:attr:`axis`, :attr:`points`)
-    and what each point's world is (:meth:`point_world`)."""
-
-    base: ContentionConfig
-    methods: tuple[str, ...] = setting(DEFAULT_SWEEP_METHODS, "fixed methods, comma-separated (default: all)",
-                                       check=METHOD_NAMES)
-    safetail: bool = setting(True, "fixed methods only", check=BOOLEAN, flag="--no-safetail",
-                             action="store_false")
-    preset: str | None = setting(None, "every SafeTail's preset (default: paper for SafeTail, tuned for "
-                                 "SafeTail-CA)", check=one_of(PRESET_NAMES), optional=True)
-    steps_scale: float = setting(1.0, "scales SafeTail's training requests and the 20,000 test requests per sweep point "
-                                 "(load or failure level)",
-                                 check=POSITIVE_NUMBER)
-    reward: str = setting("paper", "the paper learner's reward: Eq. 5 (default) or Eq. 5 without case 3's free "
-                          "miss with all servers (docs/contention.md); SafeTail-CA has its own",
-                          check=one_of(("paper", "no-free-miss")))
-    target: str = setting("eq4", "the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
-                          "observed-load (its compute term at the servers' load seen at dispatch; "
-                          "docs/deviations.md D12)", check=one_of(TARGETS))
-    learners: tuple[str, ...] = setting(
-        tuple(SAFETAIL_LEARNERS), "the SafeTails to train, comma-separated (default both): target-vector (the "
-        "paper's §III learner, row SafeTail) and value (the same network predicting each action's latency, its "
-        "copies priced at dispatch: row SafeTail-CA, docs/deviations.md D13)", check=LEARNERS, flag="--learner")
-    dispatch: str | None = setting(
-        None, "how every SafeTail's subset is sent: all at once (the paper; SafeTail's default) or tied "
-        "(cancelled once one copy starts running, as Tied; with the value learner at least two copies; "
-        "SafeTail-CA's default)", check=one_of(SAFETAIL_DISPATCH), flag="--safetail-dispatch", optional=True)
-    test_requests_per_load: int | None = setting(
-        None, "test requests per sweep point (default 20,000 × --steps-scale): more decide each p99 more "
-        "closely",
-        check=POSITIVE_INTEGER, flag="--test-requests", optional=True)
-    value_networks: int | None = setting(
-        None, "how many networks' predictions SafeTail-CA (the value learner) averages "
-        f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)", check=POSITIVE_INTEGER, optional=True)
-
-    #: What the sweep varies (each subclass's).
-    axis: ClassVar[SweepAxis]
-
-    def __post_init__(self) -> None:
-        n_test = self.test_requests_per_load
-        if n_test is not None and (isinstance(n_test, bool) or not isinstance(n_test, int) or n_test < 1):
-            raise ContentionError(f"test requests per load must be an integer >= 1, got {n_test!r}")
-        if not LEARNERS.accepts(self.learners):
-            raise ContentionError(f"learners {self.learners!r}: expected {LEARNERS.what}")
-        if self.dispatch is not None and self.dispatch not in SAFETAIL_DISPATCH:
-            raise ContentionError(f"dispatch {self.dispatch!r}: expected one of {', '.join(SAFETAIL_DISPATCH)}")
-        n_networks = self.n_value_networks
-        if isinstance(n_networks, bool) or not isinstance(n_networks, int) or n_networks < 1:
-            raise ContentionError(f"value networks must be an integer >= 1, got {n_networks!r}")
-        if n_networks > 1 and "value" not in self.learners:
-            raise ContentionError(f"{n_networks} value networks: only the value learner averages networks")
-        if self.learners == ("value",) and self.reward != "paper":
-            raise ContentionError(f"reward {self.reward!r}: the value learner has its own reward "
-                                  "(latency-cost); leave the reward at paper")
-
-    @property
-    def n_value_networks(self) -> int:
-        """The networks the value learner averages (``value_networks`` resolved; 1 without it)."""
-        if self.value_networks is not None:
-            return self.value_networks
-        return DEFAULT_VALUE_NETWORKS if "value" in self.learners else 1
-
-    @property
-    def safetails(self) -> tuple[SafeTailVariant, ...]:
-        """The SafeTails this sweep trains, in ``learners``' order (none with ``safetail`` off)."""
-        if not self.safetail:
-            return ()
-        variants = []
-        for learner in self.learners:
-            preset, dispatch = LEARNER_DEFAULTS[learner]
-            preset = self.preset or preset
-            value = learner == "value"
-            variants.append(SafeTailVariant(
-                name=SAFETAIL_LEARNERS[learner], learner=learner, preset=preset, dispatch=self.dispatch or dispatch,
-                reward="latency-cost" if value else self.reward,
-                n_networks=self.n_value_networks if value else 1,
-                train_requests=scaled_steps(get_preset(preset, self.base.use_case).train_steps, self.steps_scale)))
-        return tuple(variants)
-
-    @property
-    def test_requests(self) -> int:
-        if self.test_requests_per_load is not None:
-            return self.test_requests_per_load
-        return scaled_steps(TEST_REQUESTS, self.steps_scale)
-
-    # ------------------------------------------------------------------ what each sweep says
-
-    @property
-    def points(self) -> tuple[float, ...]:
-        """The axis's values, ascending."""
-        raise NotImplementedError
-
-    @property
-    def columns(self) -> tuple[str, ...]:
-        """The table's columns, in order."""
-        raise NotImplementedError
-
-    def point_world(self, value: float) -> ContentionConfig:
-        """The test world at ``value`` (the training world: the same with phase ``"train"``)."""
-        raise NotImplementedError
-
-    def point_columns(self, value: float, world: ContentionWorld) -> dict[str, Any]:
-        """The columns each row of the point ``value`` starts with (its world ``world``)."""
-        raise NotImplementedError
-
-    def point_settings(self, value: float) -> dict[str, Any]:
-        """One point of the sweep as a campaign run's settings (JSON values, paths absolute)."""
-        base = self.base
-        conditions = base.user_conditions
-        if conditions not in ("topology", "generated"):
-            conditions = str(Path(conditions).resolve())
-        return {
-            "use_case": base.use_case, "users": base.users, "load": base.load, "seed": base.seed,
-            "queue": base.queue, "cancel": base.cancel, "background": base.background, "world": base.world,
-            "links": base.links,
-            "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
-            "user_conditions": conditions, "methods": list(self.methods), "safetail": self.safetail,
-            "preset": self.preset, "steps_scale": self.steps_scale, "reward": self.reward,
-            "target": self.target, "learner": list(self.learners), "dispatch": self.dispatch,
-            "test_requests": self.test_requests, "value_networks": self.n_value_networks,
-        }
-
-    @staticmethod
-    def _shared_from_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
-        """The fields :meth:`point_settings` records, back from them (every sweep's)."""
-        base = ContentionConfig(
-            use_case=settings["use_case"], users=settings["users"], seed=settings["seed"],
-            queue=settings["queue"], cancel=settings["cancel"], background=settings["background"],
-            # Absent from the folders of earlier versions, whose links were read at the start.
-            links=settings.get("links", "at-start"), world=settings["world"],
-            topology=Path(settings["topology"]), placement=Path(settings["placement"]),
-            user_conditions=settings["user_conditions"])
-        # One learner's name in the folders of earlier versions, which trained one SafeTail.
-        learners = settings["learner"]
-        return dict(base=base, methods=tuple(settings["methods"]), safetail=settings["safetail"],
-                    preset=settings["preset"], steps_scale=settings["steps_scale"], reward=settings["reward"],
-                    target=settings["target"],
-                    learners=(learners,) if isinstance(learners, str) else tuple(learners),
-                    dispatch=settings["dispatch"],
-                    # Absent from the folders of earlier versions, where it followed steps_scale.
-                    test_requests_per_load=settings.get("test_requests"),
-                    value_networks=settings.get("value_networks", 1))
-
-
-@dataclass(frozen=True)
-class SweepConfig(ContentionSweep):
-    """A load sweep: every method at each offered load in ``loads`` (``experiments/load_sweep.py``)."""
-
-    loads: tuple[float, ...] = setting((0.1, 0.3, 0.5, 0.7, 0.9),
-                                       "offered loads, comma-separated (default 0.1,0.3,0.5,0.7,0.9)",
-                                       check=LOADS)
-
-    axis: ClassVar[SweepAxis] = LOAD_AXIS
-
-    @property
-    def points(self) -> tuple[float, ...]:
-        return self.loads
-
-    @property
-    def columns(self) -> tuple[str, ...]:
-        return SWEEP_COLUMNS
-
-    def point_world(self, value: float) -> ContentionConfig:
-        return replace(self.base, load=value, rate_per_user_hz=None, phase="test", n_requests=self.test_requests)
-
-    def point_columns(self, value: float, world: ContentionWorld) -> dict[str, Any]:
-        return {"load": value, "offered_load": world.offered_load()}
-
-    def point_settings(self, value: float) -> dict[str, Any]:
-        return {**super().point_settings(value), "load": value}
-
-    @classmethod
-    def from_point_settings(cls, settings: Mapping[str, Any]) -> SweepConfig:
-        """The one-load sweep a campaign run's settings describe."""
-        return cls(**cls._shared_from_settings(settings), loads=(float(settings["load"]),))
-
-
-@dataclass(frozen=True)
-class FailureSweepConfig(ContentionSweep):
-    """A failure sweep (issue 31): every method at one offered load (``load``) as each server's
-    stationary probability of being down rises through ``failure_levels`` (random failures,
-    exponential up and down times with mean repair ``mttr_s``; ``edge.failures``). Level 0 is
-    the world without failures (and without a time-out)."""
-
-    methods: tuple[str, ...] = setting(DEFAULT_FAILURE_METHODS, "fixed methods, comma-separated (default: all)",
-                                       check=METHOD_NAMES)
-    failure_levels: tuple[float, ...] = setting(
-        (0.0, 0.05, 0.1, 0.2, 0.3), "each server's stationary probability of being down, comma-separated, "
-        "one sweep point each (default 0,0.05,0.1,0.2,0.3)", check=FAILURE_LEVELS)
-    load: float = setting(DEFAULT_FAILURE_LOAD, f"the offered load at every level (default {DEFAULT_FAILURE_LOAD:g}: the one "
-                          "load of the load sweep at which Oracle's queues are stable)", check=ONE_LOAD)
-    mttr_s: float = setting(DEFAULT_MTTR_S, f"each server's mean time to repair in seconds (default {DEFAULT_MTTR_S:g}; "
-                            "its mean time to failure follows from the level)", check=POSITIVE_NUMBER)
-    timeout_s: float | None = setting(
-        None, "how long a user waits for a reply before the on-device fallback (default: the world's worst-case "
-        "latency of a live uncontended copy)", check=POSITIVE_NUMBER, optional=True)
-
-    axis: ClassVar[SweepAxis] = FAILURE_AXIS
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name, check in (("failure_levels", FAILURE_LEVELS), ("load", ONE_LOAD), ("mttr_s", POSITIVE_NUMBER)):
-            if not check.accepts(getattr(self, name)):
-                raise ContentionError(f"{name}: expected {check.what}, got {getattr(self, name)!r}")
-        if self.timeout_s is not None and not POSITIVE_NUMBER.accepts(self.timeout_s):
-            raise ContentionError(f"timeout_s: expected {POSITIVE_NUMBER.what}, got {self.timeout_s!r}")
-
-    @property
-    def points(self) -> tuple[float, ...]:
-        return tuple(sorted(self.failure_levels))
-
-    @property
-    def columns(self) -> tuple[str, ...]:
-        return FAILURE_SWEEP_COLUMNS
-
-    def failures(self, level: float) -> FailureSettings:
-        """The failure model at ``level`` (0: none)."""
-        return FailureSettings.for_unavailability(level, mttr_s=self.mttr_s, timeout_s=self.timeout_s)
-
-    def point_world(self, value: float) -> ContentionConfig:
-        return replace(self.base, load=self.load, rate_per_user_hz=None, failures=self.failures(value),
-                       phase="test", n_requests=self.test_requests)
-
-    def point_columns(self, value: float, world: ContentionWorld) -> dict[str, Any]:
-        return {"failure_level": value, "load": self.load, "offered_load": world.offered_load()}
-
-    def point_settings(self, value: float) -> dict[str, Any]:
-        return {**super().point_settings(value), "load": self.load, "failure_level": value,
-                "mttr_s": self.mttr_s, "timeout_s": self.timeout_s}
-
-    @classmethod
-    def from_point_settings(cls, settings: Mapping[str, Any]) -> FailureSweepConfig:
-        """The one-level sweep a campaign run's settings describe."""
-        return cls(**cls._shared_from_settings(settings), failure_levels=(float(settings["failure_level"]),),
-                   load=float(settings["load"]), mttr_s=float(settings["mttr_s"]), timeout_s=settings["timeout_s"])
-
-
-#: Each point kind's configuration (a campaign run's ``kind`` -> the sweep it is one point of).
-POINT_KINDS: dict[str, type[SweepConfig] | type[FailureSweepConfig]] = {
-    LOAD_POINT: SweepConfig, FAILURE_POINT: FailureSweepConfig}
-
 
 def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int) -> SafeTailPolicy:
     # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
