@@ -26,6 +26,7 @@ sys.argv = args
 runpy.run_path(args[0], run_name="__main__")
 """
 RUN_SCRIPT = str(REPOSITORY / "experiments" / "run_usecase.py")
+SWEEP_SCRIPT = str(REPOSITORY / "experiments" / "load_sweep.py")
 CASES = {
     "run --help": (["yafs-safetail", "run", "--help"], 0),
     "run --uc 7": (["yafs-safetail", "run", "--uc", "7"], 2),
@@ -39,6 +40,20 @@ CASES = {
     "reproduce --uc 9": (["yafs-safetail", "reproduce", "--uc", "9"], 2),
     "learning rate --help": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--help"], 0),
     "learning rate --uc 7": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--uc", "7"], 2),
+    # The sweeps' options come from contention.sweep_config, so these guard its imports too.
+    **{f"{command} --help": (["yafs-safetail", command, "--help"], 0)
+       for command in ("sweep", "failure-sweep", "mechanism")},
+    **{f"{script} --help": ([str(REPOSITORY / "experiments" / f"{script}.py"), "--help"], 0)
+       for script in ("load_sweep", "failure_sweep", "training_mechanism")},
+    "sweep --loads 0": (["yafs-safetail", "sweep", "--loads", "0", "--out", "unused"], 2),
+    "load_sweep --links bogus": ([SWEEP_SCRIPT, "--links", "bogus", "--out", "unused"], 2),
+    "load_sweep --learner bogus": ([SWEEP_SCRIPT, "--learner", "bogus", "--out", "unused"], 2),
+    "load_sweep --safetail-dispatch bogus": ([SWEEP_SCRIPT, "--safetail-dispatch", "bogus", "--out", "unused"], 2),
+    "failure-sweep --failure-levels 2": (["yafs-safetail", "failure-sweep", "--failure-levels", "2",
+                                          "--out", "unused"], 2),
+    "failure_sweep --mttr-s 0": ([str(REPOSITORY / "experiments" / "failure_sweep.py"), "--mttr-s", "0",
+                                  "--out", "unused"], 2),
+    "mechanism --loads 0": (["yafs-safetail", "mechanism", "--loads", "0", "--out", "unused"], 2),
 }
 
 

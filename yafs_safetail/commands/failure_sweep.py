@@ -28,6 +28,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+# Light modules only until the arguments are checked (--help answers at once); the sweep and its
+# report, with NumPy and pandas behind them, are imported in main.
 from yafs_safetail.cli import ArgumentParser, configure_verbosity, invocation, non_negative_int
 from yafs_safetail.commands.load_sweep import (
     LEARNER_OPTIONS,
@@ -42,10 +44,9 @@ from yafs_safetail.commands.load_sweep import (
     safetail_lines,
     sweep_run_json,
 )
-from yafs_safetail.contention.sweep import FailureSweepConfig, point_specs
-from yafs_safetail.contention.sweep_report import FAILURE_REPORT, checks_markdown, failure_checks
-from yafs_safetail.runs.campaign import engine_free_command
+from yafs_safetail.contention.sweep_config import FailureSweepConfig
 from yafs_safetail.runs.config import add_options, config_from_args
+from yafs_safetail.runs.engine_options import engine_free_command
 
 #: run.json's kind of a failure sweep's folder.
 FAILURE_SWEEP_KIND = "failure_sweep"
@@ -55,7 +56,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="failure_sweep.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     add_users_options(parser)
-    # The sweep's own settings, each declared once in contention.sweep.FailureSweepConfig.
+    # The sweep's own settings, each declared once in contention.sweep_config.FailureSweepConfig.
     add_options(parser, FailureSweepConfig, only=("failure_levels", "load", "mttr_s", "timeout_s"))
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
     add_options(parser, FailureSweepConfig, only=LEARNER_OPTIONS)
@@ -63,6 +64,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_output_options(parser, FailureSweepConfig)
     args = parser.parse_args(argv)
     configure_verbosity(args)
+    # The arguments are checked: now the sweep and its report, with NumPy and pandas.
+    from yafs_safetail.contention.sweep import point_specs
+    from yafs_safetail.contention.sweep_report import (
+        FAILURE_REPORT,
+        checks_markdown,
+        failure_checks,
+    )
+
     check_methods(args)
     config: FailureSweepConfig = config_from_args(args, FailureSweepConfig, base=contention_base(args, args.seed))
     check_test_requests(args, config)

@@ -33,11 +33,10 @@ import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import pandas as pd
-
+# Light modules only until the arguments are checked (--help answers at once); the sweep, the
+# campaign and the report, with NumPy and pandas behind them, are imported where they run.
 from yafs_safetail import __version__
 from yafs_safetail.cli import (
     ArgumentParser,
@@ -48,27 +47,16 @@ from yafs_safetail.cli import (
     non_negative_int,
     positive_int,
 )
-from yafs_safetail.contention.sweep import ContentionSweep, SweepConfig, point_specs
-from yafs_safetail.contention.sweep_report import (
-    LOAD_REPORT,
-    checks_markdown,
-    glance_markdown,
-    seeds_markdown,
-    write_table,
-)
-from yafs_safetail.contention.world import LINK_MODELS, ContentionConfig, ContentionError
-from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
-from yafs_safetail.methods.registry import make_baseline
-from yafs_safetail.results.files import write_text_atomic
-from yafs_safetail.runs.campaign import (
-    STATE_FILE,
-    add_engine_options,
-    engine_free_command,
-    run_campaign,
-)
+from yafs_safetail.contention.config import LINK_MODELS, ContentionConfig, ContentionError
+from yafs_safetail.contention.sweep_config import ContentionSweep, SweepConfig
+from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.runs.config import add_options, config_from_args
-from yafs_safetail.runs.grid import RunSpec
-from yafs_safetail.runs.output import SWEEP_FILE
+from yafs_safetail.runs.engine_options import add_engine_options, engine_free_command
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from yafs_safetail.runs.grid import RunSpec
 
 #: With --seeds: every seed's sweep.csv rows, with a leading seed column.
 SEEDS_FILE = "seeds.csv"
@@ -76,7 +64,7 @@ SEEDS_FILE = "seeds.csv"
 SWEEP_KIND = "load_sweep"
 SEEDS_KIND = "load_sweep_seeds"
 #: The sweep's settings given as options beside the axis's (each declared once in
-#: contention.sweep), in the order --help lists them.
+#: contention.sweep_config), in the order --help lists them.
 LEARNER_OPTIONS = ("steps_scale", "test_requests_per_load", "preset", "reward", "target", "learners",
                    "value_networks", "dispatch")
 
@@ -129,6 +117,10 @@ def contention_base(args: argparse.Namespace, seed: int) -> ContentionConfig:
 def check_methods(args: argparse.Namespace) -> None:
     """The methods' options that parsing alone cannot check, as a one-line ContentionError
     before the sweep's configuration is built."""
+    import numpy as np
+
+    from yafs_safetail.methods.registry import make_baseline
+
     for name in args.methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
     if args.value_networks is not None and "value" not in args.learners:
@@ -148,6 +140,8 @@ def is_sweep_folder(folder: Path, kind: str, runs: tuple[str, ...]) -> bool:
     """A folder a sweep command made for ``kind``: a campaign's state file, and a sweep's
     run.json of that kind or nothing but the campaign's files and its run folders (named with
     one of ``runs``), so another campaign's folder or a results folder is never written into."""
+    from yafs_safetail.runs.campaign import STATE_FILE
+
     if not (folder / STATE_FILE).is_file():
         return False
     if not (folder / "run.json").exists():
@@ -170,6 +164,11 @@ def run_points(out: Path, specs: Mapping[int, Sequence[RunSpec]], args: argparse
     """Every point of every seed's sweep as one campaign into ``out`` (each point cached by its
     configuration's hash, resumable, on any engine); each seed's rows read back from its points'
     folders, in point order. None when a point failed (the campaign has said which)."""
+    import pandas as pd
+
+    from yafs_safetail.runs.campaign import run_campaign
+    from yafs_safetail.runs.output import SWEEP_FILE
+
     result = run_campaign([spec for seed_specs in specs.values() for spec in seed_specs], out, engine=args.engine,
                           workers=args.workers, ray_address=args.ray_address, command=command,
                           overwrite=args.overwrite)
@@ -214,12 +213,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     seeds.add_argument("--seeds", type=distinct_int_list,
                        help="several distinct seeds, comma-separated: a sweep per seed in OUT/seed-<S>/, "
                             "compared in OUT/SEEDS.md")
-    # The sweep's own settings, each declared once in contention.sweep.SweepConfig.
+    # The sweep's own settings, each declared once in contention.sweep_config.SweepConfig.
     add_options(parser, SweepConfig, only=LEARNER_OPTIONS)
     add_world_options(parser)
     add_output_options(parser, SweepConfig)
     args = parser.parse_args(argv)
     configure_verbosity(args)
+    # The arguments are checked: now the sweep and its report, with NumPy and pandas.
+    import pandas as pd
+
+    from yafs_safetail.contention.sweep import point_specs
+    from yafs_safetail.contention.sweep_report import (
+        LOAD_REPORT,
+        checks_markdown,
+        glance_markdown,
+        seeds_markdown,
+        write_table,
+    )
+    from yafs_safetail.results.files import write_text_atomic
+    from yafs_safetail.runs.output import SWEEP_FILE
+
     check_methods(args)
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     several = args.seeds is not None

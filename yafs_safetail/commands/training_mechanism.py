@@ -21,6 +21,8 @@ from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
 
+# Light modules only until the arguments are checked (--help answers at once); the training and
+# its figure, with NumPy, pandas and TensorFlow behind them, are imported in main.
 from yafs_safetail.cli import (
     ArgumentParser,
     add_verbosity_options,
@@ -29,6 +31,9 @@ from yafs_safetail.cli import (
     non_negative_int,
     positive_int,
 )
+from yafs_safetail.contention.config import ContentionConfig
+from yafs_safetail.contention.sweep_config import SweepConfig
+from yafs_safetail.runs.config import add_options, config_from_args
 
 #: Windows of training per load (contention.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).
 DEFAULT_WINDOWS = 20
@@ -36,15 +41,12 @@ MECHANISM_KIND = "training_mechanism"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from yafs_safetail.contention.sweep import SweepConfig
-    from yafs_safetail.runs.config import add_options, config_from_args
-
     parser = ArgumentParser(prog="training_mechanism.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--uc", type=int, choices=(1, 2, 3), default=1, help="use case (default 1)")
     parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
-    # The load sweep's own settings, declared once in contention.sweep.SweepConfig.
+    # The load sweep's own settings, declared once in contention.sweep_config.SweepConfig.
     add_options(parser, SweepConfig, only=("loads", "steps_scale", "preset", "reward", "target", "learners",
                                            "value_networks", "dispatch"))
     parser.add_argument("--windows", type=positive_int, default=DEFAULT_WINDOWS,
@@ -57,7 +59,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from yafs_safetail import __version__
     from yafs_safetail.contention.mechanism import measure_training, mechanism_figure
-    from yafs_safetail.contention.world import ContentionConfig
     from yafs_safetail.results.files import write_text_atomic
     from yafs_safetail.runs.output import MECHANISM_FILE, StagedOutput
 
