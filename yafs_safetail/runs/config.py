@@ -74,7 +74,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ExperimentError", "Task", "WorldSetup", "WORLD_OVERRIDES", "LearnerOverrides", "Output",
-    "LATER_RESULT_FIELDS", "PROBABILITY_BELOW_ONE",
+    "LATER_RESULT_FIELDS", "LEARNER_OBJECTIVES", "PROBABILITY_BELOW_ONE",
     "ExperimentConfig", "GROUPS", "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS",
     "add_options", "config_from_args", "check_config", "learner_overrides", "learner_config",
     # From runs.settings.
@@ -102,6 +102,11 @@ PROBABILITY_BELOW_ONE = Check(
     "a probability in [0, 1)",
     lambda v: not isinstance(v, bool) and isinstance(v, float | int) and math.isfinite(v) and 0 <= v < 1,
     _probability_below_one)
+
+
+#: SafeTail's learners (``methods.safetail.presets.OBJECTIVES``, spelled out here because this
+#: module loads before NumPy; a test keeps the two equal).
+LEARNER_OBJECTIVES: tuple[str, ...] = ("target-vector", "value")
 
 
 # ----------------------------------------------------------------------------- the groups
@@ -213,13 +218,23 @@ class LearnerOverrides:
         None, "beyond the paper: subtract this from SafeTail's Eq. 5 reward for every request that "
         "did not end with a reply (default 0; docs/deviations.md D15)",
         check=NON_NEGATIVE_NUMBER, optional=True)
+    objective: str | None = setting(
+        None, "beyond the paper: SafeTail's learner, target-vector (the paper's §III, the default) or "
+        "value (the network regresses each action's latency score, less the D15 prices when set, "
+        "and copies to busy servers are priced at dispatch: the contention world's SafeTail-CA "
+        "learner; docs/deviations.md D13, D15)", check=one_of(LEARNER_OBJECTIVES), flag="--learner",
+        optional=True)
+    n_networks: int | None = setting(
+        None, "with --learner value: how many value networks, each from its own initial weights, "
+        "SafeTail averages (default 1; docs/deviations.md D13)", check=POSITIVE_INTEGER,
+        flag="--value-networks", optional=True)
 
 
 #: Result fields added after run ids were first recorded: a run id leaves each out while it is
 #: at its default (None), so every configuration that does not use them keeps its id.
 LATER_RESULT_FIELDS: tuple[str, ...] = (
     "failure_mttf_s", "failure_mttr_s", "failure_probability", "down_intervals", "timeout_s",
-    "server_idle_w", "server_max_w", "energy_price_per_j", "failure_penalty")
+    "server_idle_w", "server_max_w", "energy_price_per_j", "failure_penalty", "objective", "n_networks")
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,8 @@ def make_learners(config: ExperimentConfig, inputs: _Inputs,
 
 
 def _safetail(config: ExperimentConfig, inputs: _Inputs) -> SafeTailPolicy:
-    """SafeTail with a fresh learner of the run's preset, or the saved one of ``--policy``."""
+    """SafeTail with a fresh learner of the run's preset (and ``--learner``), or the saved one of
+    ``--policy``."""
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 
@@ -71,8 +72,12 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs) -> SafeTailPolicy:
         inputs.learner_config, config.seed,
         metadata={"use_case": use_case.number, "topology": str(config.topology)},
     )
+    # The value learner (--learner value, D13) has its own reward, as in the contention world;
+    # the §III learner has Eq. 5. Either way copies are sent all at once, as the paper's.
+    reward_name = "latency-cost" if inputs.learner_config.objective == "value" else "paper"
     policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,
-                            scales=StateScales.for_use_case(use_case.number), training=True)
+                            scales=StateScales.for_use_case(use_case.number), training=True,
+                            reward_name=reward_name)
     if config.policy is not None:
         policy.load(config.policy)
     return policy

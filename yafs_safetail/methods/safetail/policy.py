@@ -22,7 +22,7 @@ from yafs_safetail.methods.safetail.reward import (
     REWARD_NAMES,
     REWARDS,
     copy_price,
-    latency_score,
+    priced_latency_score,
     priced_reward,
 )
 from yafs_safetail.methods.safetail.spaces import (
@@ -54,7 +54,9 @@ class SafeTailPolicy(LearningPolicy):
     (ω^t, A^{t+1}, R^{t+1}) to the learner (a training round every κ tuples). With the
     ``"latency-cost"`` reward the learner is given only the reward's latency score, and the
     price of each action's copies (the jobs on its servers at dispatch) is subtracted from the
-    network's predictions when choosing.
+    network's predictions when choosing; the learner's energy price and failure penalty (D15)
+    are subtracted from the score it learns (:func:`~yafs_safetail.methods.safetail.reward.
+    priced_latency_score`), from Eq. 5 with the §III learner.
 
     Args:
         n_servers: n; must match the learner's.
@@ -135,28 +137,25 @@ class SafeTailPolicy(LearningPolicy):
     def feedback(self, outcome: RequestRecord) -> RequestRecord:
         state, action, epsilon, price = self._decisions.pop(outcome.step)
         config = self.learner.config
+        replied = outcome.end_reason == END_REPLY
         if self._reward is None:
-            # reward_latency_cost, from the score the network learns and the price of the copies.
-            learned = self._priced(latency_score(outcome.latency_s, outcome.target_s), outcome)
+            # reward_latency_cost: the network learns the request's score, with its energy and
+            # failure prices (known only now that it ended); its copies' price was known at
+            # dispatch and is subtracted there, not learned.
+            learned = priced_latency_score(outcome.latency_s, outcome.target_s, outcome.energy_j, replied,
+                                           config.energy_price_per_j, config.failure_penalty)
             value = learned - price
         else:
-            value = self._priced(self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers),
-                                              self.n_servers, config.delta), outcome)
+            eq5 = self._reward(outcome.latency_s, outcome.target_s, len(outcome.servers), self.n_servers,
+                               config.delta)
+            value = priced_reward(eq5, outcome.energy_j, replied, config.energy_price_per_j,
+                                  config.failure_penalty)
             learned = value
         if self.training:
             started = time.perf_counter()
             self.learner.observe(state, action, learned)
             self.training_time_s += time.perf_counter() - started
         return dataclasses.replace(outcome, reward=value, epsilon=epsilon)
-
-    def _priced(self, base: float, outcome: RequestRecord) -> float:
-        """The reward less the energy and failure prices the learner was given (D15; both 0:
-        ``base`` itself)."""
-        config = self.learner.config
-        if not (config.energy_price_per_j or config.failure_penalty):
-            return base
-        return priced_reward(base, outcome.energy_j, outcome.end_reason == END_REPLY,
-                             config.energy_price_per_j, config.failure_penalty)
 
     # -- LearningPolicy: what a run asks of every learning method -------------------------
 
@@ -185,6 +184,11 @@ class SafeTailPolicy(LearningPolicy):
         if learner.n_servers != self.n_servers:
             raise PolicyError(f"SafeTail: {path} is for {learner.n_servers} servers, the topology "
                               f"has {self.n_servers}")
+        if (learner.config.objective == "value") != (self._reward is None):
+            # A value network predicts latency scores and §III's predicts action probabilities:
+            # each is evaluated with the reward it was trained with (the value learner's own, or
+            # Eq. 5), else its greedy choices would not be the ones it was trained to make.
+            self._reward = None if learner.config.objective == "value" else REWARDS["paper"]
         self.learner = learner
         self.loaded_from = Path(path)
 

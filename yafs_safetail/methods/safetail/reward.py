@@ -164,6 +164,29 @@ def priced_reward(base: float, energy_j: float, replied: bool, energy_price_per_
     return value
 
 
+def priced_latency_score(latency_s: float, target_s: float, energy_j: float, replied: bool,
+                         energy_price_per_j: float = 0.0, failure_penalty: float = 0.0) -> float:
+    """What the ``"value"`` network regresses for one request: :func:`latency_score` less the
+    D15 prices, not the paper's.
+
+    ``-log(L_R / τ) - energy_price_per_j * energy_j - failure_penalty * (not replied)``. Unlike
+    :func:`copy_price`, known at dispatch and subtracted at choice time, a request's energy and
+    whether it got a reply are known only once it ends, so the network learns them with its
+    latency, per action. With both prices 0 it is the latency score itself (the contention
+    world's SafeTail-CA, D13).
+
+    Args:
+        latency_s: L_R, seconds, finite and >= 0.
+        target_s: τ, seconds, finite and > 0.
+        energy_j: what the request's copies cost: servers and the device's radio, joules.
+        replied: whether the request ended with a reply within the time-out.
+        energy_price_per_j: score units per joule, >= 0.
+        failure_penalty: score units for a request that ended without a reply, >= 0.
+    """
+    return priced_reward(latency_score(latency_s, target_s), energy_j, replied, energy_price_per_j,
+                         failure_penalty)
+
+
 #: The Eq. 5-shaped rewards a SafeTail policy can be trained with, by name (``"paper"`` = Eq. 5).
 REWARDS = {"paper": reward, "no-free-miss": reward_no_free_miss}
 #: Every reward name: those of :data:`REWARDS` and ``"latency-cost"``
