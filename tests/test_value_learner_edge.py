@@ -136,3 +136,17 @@ def test_run_usecase_with_the_value_learner_and_a_price(tmp_path):
     loaded = loaded[(loaded["method"] == "SafeTail") & (loaded["phase"] == "test")][columns]
     assert len(loaded) > 0
     assert trained.reset_index(drop=True).equals(loaded.reset_index(drop=True))
+
+
+def test_the_run_id_hashes_the_learner_only_when_set():
+    from unittest import mock
+
+    from yafs_safetail.runs import grid
+
+    with mock.patch.object(grid, "code_version", lambda: "0.0.0+git.test"), \
+            mock.patch.object(grid, "_digest", lambda path: "digest"):
+        default = grid.config_run_id(ExperimentConfig())
+        assert default == "a89f6bb8a559"  # tests/test_config.py's pinned id of the defaults
+        value = grid.config_run_id(ExperimentConfig(objective="value"))
+        assert value != default
+        assert grid.config_run_id(ExperimentConfig(objective="value", n_networks=3)) not in (default, value)
