@@ -70,14 +70,3 @@ def test_help_and_argument_errors_load_nothing_heavy(case):
     else:  # the one-line error, nothing else
         assert len(lines) == 2 and lines[0].startswith("error: "), done.stderr
 
-
-def test_the_light_names_are_the_methods_own():
-    """defaults.py repeats three names of NumPy-loading modules for the sweeps' options; until
-    those modules import them from there, the copies must not drift apart."""
-    from yafs_safetail import defaults
-    from yafs_safetail.methods import registry
-    from yafs_safetail.methods.safetail import policy, presets
-
-    assert defaults.SAFETAIL == registry.SAFETAIL
-    assert defaults.OBJECTIVES == presets.OBJECTIVES
-    assert defaults.SAFETAIL_DISPATCH == policy.SAFETAIL_DISPATCH

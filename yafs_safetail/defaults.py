@@ -55,10 +55,8 @@ OBJECTIVES = ("target-vector", "value")
 #: How SafeTail sends its subset (``SafeTailPolicy``'s ``dispatch``): every copy at once (the
 #: paper), or tied copies cancelled once one starts running.
 SAFETAIL_DISPATCH = ("all", "tied")
-# The sweep commands' options name these three. methods.registry.SAFETAIL,
-# methods.safetail.presets.OBJECTIVES and methods.safetail.policy.SAFETAIL_DISPATCH still
-# define their own copies (those modules load NumPy); tests/test_first_answer.py checks that
-# they match until they import them from here.
+# The sweep commands' options name these three; methods.registry, methods.safetail.presets and
+# methods.safetail.policy import them from here (those modules load NumPy).
 #: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
 #: median scaled to the request's own input (docs/deviations.md D11).
 TARGET_COMPUTES = ("trace_median", "request")

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from yafs_safetail.defaults import SAFETAIL as SAFETAIL
 from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
 from yafs_safetail.methods.hedging import Hedge, Tied
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import Policy, PolicyError
 
-SAFETAIL = "SafeTail"
 ORACLE = "Oracle"
 #: The redundancy-level families of §V-B, in report order, and their policies.
 BASELINE_FAMILIES: tuple[str, ...] = ("Rand", "MinLoad", "MinProp")

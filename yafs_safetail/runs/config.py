@@ -43,6 +43,7 @@ from yafs_safetail.defaults import (
     DEFAULT_STEP_INTERVAL_S,
     DEFAULT_TOPOLOGY,
     DEFAULT_TRACE_DIR,
+    OBJECTIVES,
     PRESET_NAMES,
     TARGET_COMPUTES,
 )
@@ -104,9 +105,8 @@ PROBABILITY_BELOW_ONE = Check(
     _probability_below_one)
 
 
-#: SafeTail's learners (``methods.safetail.presets.OBJECTIVES``, spelled out here because this
-#: module loads before NumPy; a test keeps the two equal).
-LEARNER_OBJECTIVES: tuple[str, ...] = ("target-vector", "value")
+#: SafeTail's learners (the ``--learner`` choices: defaults.OBJECTIVES, which the learner uses too).
+LEARNER_OBJECTIVES: tuple[str, ...] = OBJECTIVES
 
 
 # ----------------------------------------------------------------------------- the groups

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from yafs_safetail.defaults import SAFETAIL_DISPATCH as SAFETAIL_DISPATCH
 from yafs_safetail.edge.failures import END_REPLY
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.learning import LearningPolicy
@@ -36,8 +37,6 @@ from yafs_safetail.record import RequestRecord
 if TYPE_CHECKING:
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
 
-#: How SafeTail's chosen subset can be dispatched (``Policy.dispatch``).
-SAFETAIL_DISPATCH = ("all", "tied")
 #: The fewest copies the value learner's greedy choice sends as a tied request (when n >= 2).
 #: A lone copy has no sibling to take over when its queue is long, and under load the
 #: price of a second copy grows with the queues, so without this floor the learner sent lone

@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass
 
 # The names live in defaults.py: --help lists them before anything heavy loads.
+from yafs_safetail.defaults import OBJECTIVES as OBJECTIVES
 from yafs_safetail.defaults import PRESET_NAMES as PRESET_NAMES
 from yafs_safetail.edge import published
 
@@ -56,11 +57,6 @@ PAPER_BATCH_SIZE = 32
 PAPER_LEARNING_RATES = {1: 1e-3, 2: 3e-3, 3: 1e-5}
 
 REPLAY_SAMPLING = ("recent", "uniform")
-#: What the network is trained to output: ``"target-vector"``, §III's softmax over actions fitted to
-#: the target vector V^t by cross-entropy (the paper); ``"value"``, each action's expected value of
-#: what it is given to learn (the latency score), fitted by squared error on the action taken
-#: (beyond the paper: the contention world's learner, docs/deviations.md D13).
-OBJECTIVES = ("target-vector", "value")
 
 
 @dataclass(frozen=True, slots=True)
