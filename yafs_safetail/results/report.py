@@ -98,7 +98,8 @@ def _thin_lines(summary: pd.DataFrame) -> list[str]:
 
 
 def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> str:
-    """The run's markdown report: latency table, the paper's ratios, the paper's claims.
+    """The run's markdown report: latency table, the paper's ratios, the paper's claims, and
+    (in a run with failing servers) each method's success and energy.
 
     A run outside the paper's setting (:func:`paper.setting_differences`: another topology or
     placement, or a world changed by the run's options) is not scored against the paper: no
@@ -113,11 +114,22 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     Returns:
         Markdown text ending with a newline.
     """
-    # Long on purpose: summary.md's sections in the order a reader meets them, in one place.
     use_case = run.use_case if run else None
     differences = setting_differences(run) if run else []
     # The paper's numbers belong to its setting: outside it, a comparison would score nothing.
     scored_use_case = None if differences else use_case
+    lines = _heading_lines(summary, run, differences)
+    lines += _latency_lines(summary)
+    table = speedup_table(summary, scored_use_case)
+    lines += _speedup_sections(table)
+    if use_case is not None:
+        lines += _claim_lines(summary, use_case, differences)
+    if run is not None and (run.extra.get("failures") or {}).get("enabled"):
+        lines += _failure_energy_lines(summary, run)
+    return "\n".join(lines) + "\n"
+
+
+def _heading_lines(summary: pd.DataFrame, run: RunMetadata | None, differences: list[str]) -> list[str]:
     if run:
         title = (f"# SafeTail results: use case {run.use_case} ({run.use_case_name}), "
                  f"preset `{run.preset}`{run.learning_rate_note}, seed {run.seed}")
@@ -132,13 +144,17 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
             "the \"paper\" columns are left empty and the claims below are for information.",
             "",
         ]
-    elif use_case is not None and SAFETAIL in set(summary["method"]):
+    elif run is not None and SAFETAIL in set(summary["method"]):
         from yafs_safetail.results.fidelity import run_line  # fidelity reads this module's tables
 
-        lines += [run_line(summary, use_case), ""]
+        lines += [run_line(summary, run.use_case), ""]
+    return lines
+
+
+def _latency_lines(summary: pd.DataFrame) -> list[str]:
     n_test = ", ".join(f"{m} {n}" for m, n in zip(summary["method"], summary["n_requests"],
                                                    strict=True))
-    lines += [
+    lines = [
         "Test phase only. Latencies in seconds; percentiles by numpy's linear interpolation. "
         f"Test requests per method: {n_test or 'none'}.",
         "",
@@ -149,13 +165,15 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
          _fmt(r.target_met_rate), _fmt(r.fallback_rate)]
         for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)
     ]
-    lines += markdown_table(
+    return lines + markdown_table(
         ["method", "median", "p90", "p95", "p99", "mean access rate", "mean servers",
          "mean target", "target met", "fallback rate"],
         rows,
     )
-    table = speedup_table(summary, scored_use_case)
-    lines += ["", "## Oracle vs SafeTail", ""]
+
+
+def _speedup_sections(table: pd.DataFrame) -> list[str]:
+    lines = ["", "## Oracle vs SafeTail", ""]
     oracle_lines = _speedup_lines(table, ORACLE, SAFETAIL)
     if oracle_lines:
         lines += [
@@ -184,19 +202,43 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     if stated:
         lines += ["", f"The paper's statements behind the \"paper\" columns ({PAPER_SOURCE}):", "",
                   *stated]
-    if use_case is not None:
-        claims = check_claims(summary, use_case)
-        if not claims.empty:
-            note = ("Where the paper is vague, our reading is written into the statement "
-                    "(test phase; target = the average target latency).")
-            if differences:
-                note += " Not the paper's setting (above): for information, not a score."
-            lines += ["", "## The paper's qualitative statements", "", note, ""]
-            verdict = {True: "yes", False: "no", None: "cannot check"}
-            lines += markdown_table(["paper says", "holds in this run"],
-                            [[t, verdict[h]] for t, h in zip(claims["text"], claims["holds"],
-                                                             strict=True)])
-    return "\n".join(lines) + "\n"
+    return lines
+
+
+def _claim_lines(summary: pd.DataFrame, use_case: int, differences: list[str]) -> list[str]:
+    claims = check_claims(summary, use_case)
+    if claims.empty:
+        return []
+    note = ("Where the paper is vague, our reading is written into the statement "
+            "(test phase; target = the average target latency).")
+    if differences:
+        note += " Not the paper's setting (above): for information, not a score."
+    lines = ["", "## The paper's qualitative statements", "", note, ""]
+    verdict = {True: "yes", False: "no", None: "cannot check"}
+    return lines + markdown_table(["paper says", "holds in this run"],
+                                  [[t, verdict[h]] for t, h in zip(claims["text"], claims["holds"],
+                                                                   strict=True)])
+
+
+def _failure_energy_lines(summary: pd.DataFrame, run: RunMetadata) -> list[str]:
+    """Each method's success and energy in a run whose servers fail (docs/failures_energy.md)."""
+    failures = run.extra["failures"]
+    timeout_s = failures.get("timeout_s")
+    how = (f"each server down {failures['unavailability']:.0%} of the time, mean repair "
+           f"{failures['mttr_s']:g} s" if failures.get("mttf_s") else "scripted outages")
+    if failures.get("down_file"):
+        how += f", outages from {failures['down_file']}"
+    lines = ["", "## Failures and energy", "",
+             f"Servers fail in this run ({how}); the user waits {_fmt(timeout_s)} s for a reply, then "
+             "takes the on-device fallback. Success = a reply within that time; energy = the servers' "
+             "compute and the device's radio per request (docs/failures_energy.md).", ""]
+    columns = [c for c in ("success_rate", "all_lost_rate", "timeout_rate", "all_refused_rate",
+                           "energy_j_per_request") if c in summary.columns]
+    rows = [[m, *(_fmt(getattr(r, c)) for c in columns)]
+            for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)]
+    header = {"success_rate": "success", "all_lost_rate": "all lost", "timeout_rate": "timed out",
+              "all_refused_rate": "all refused", "energy_j_per_request": "energy per request (J)"}
+    return lines + markdown_table(["method", *(header[c] for c in columns)], rows)
 
 
 def write_summary(
