@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from yafs_safetail.contention.failure_handling import FailureHandling
+from yafs_safetail.contention.shared_capacity import SharedCapacity
 from yafs_safetail.contention.state import (
     CANCELLED,
     DONE,
@@ -26,17 +28,13 @@ from yafs_safetail.contention.state import (
     RUNNING,
     TRANSIT,
     Copy,
-    Link,
     Request,
     Server,
-    Transfer,
     outcome,
 )
 from yafs_safetail.contention.types import (
-    END_ALL_LOST_CODE,
     END_ALL_REFUSED_CODE,
     END_REPLY_CODE,
-    END_TIMEOUT_CODE,
     Dispatcher,
     EngineResult,
     EngineSettings,
@@ -52,8 +50,10 @@ Event = tuple[float, int, Callable[[Any, int], None], Any, int]
 _push = heapq.heappush
 
 
-class Simulation:
-    """One run: the servers, the event heap, the requests being emitted and the result arrays.
+class Simulation(FailureHandling, SharedCapacity):
+    """One run: the servers, the event heap, the requests being emitted and the result arrays
+    (failures, time-outs and energy in :class:`FailureHandling`; links and background tenants in
+    :class:`SharedCapacity`).
 
     Each ``on_*`` method handles one kind of event at ``now_s``; the others are the steps they
     share (a copy starts, a server's occupancy or a link's transfers change, a request ends).
@@ -241,57 +241,6 @@ class Simulation:
         self.dispatcher.completed(outcome(request, latency_s, copy, END_REASONS[reason],
                                           self.energy_so_far(request)))
 
-    # --- failures and energy --------------------------------------------------------------------
-
-    def lose(self, copy: Copy) -> None:
-        """``copy`` is lost to its server's failure (nobody is told)."""
-        copy.state = LOST
-        request = copy.request
-        request.lost += 1
-        self.result.lost[request.index] += 1
-        self.lost_copies += 1
-
-    def lost_on_the_way(self, copy: Copy) -> bool:
-        """Whether ``copy``, not on a link now, was lost by a failure it has not met yet: its
-        server went down after it left the user (its input on the way), or, with at-start
-        links, before its reply had left the server."""
-        state = copy.state
-        if state == TRANSIT and copy.transfer is None:
-            return copy.server.went_down_within(copy.sent_s, self.now_s)
-        if state == REPLYING and not self.shared_links:
-            return copy.server.went_down_within(copy.end_s, min(self.now_s, copy.reply_left_s))
-        return False
-
-    def charge_upload(self, request: Request, fraction: float, transfer_s: float) -> None:
-        """The device sent ``fraction`` of the request's input over ``transfer_s``."""
-        self.radio_energy_j[request.index] += (self.radio_up_j_per_byte * fraction * request.input_bytes
-                                               + self.radio_active_w * transfer_s)
-
-    def charge_download(self, request: Request, fraction: float, transfer_s: float) -> None:
-        """The device received ``fraction`` of a reply over ``transfer_s``."""
-        self.radio_energy_j[request.index] += (self.radio_down_j_per_byte * fraction * request.output_bytes
-                                               + self.radio_active_w * transfer_s)
-
-    def stop_computing(self, copy: Copy) -> None:
-        """``copy`` stops running now (done, cancelled or lost): its server time and energy."""
-        ran_s = self.now_s - copy.start_s
-        self.busy_s += ran_s
-        self.server_energy_j[copy.request.index] += self.per_process_w * ran_s
-
-    def energy_so_far(self, request: Request) -> tuple[float, float, float]:
-        """The request's servers', radio and saved energy until now (running copies included)."""
-        j = request.index
-        running_s = sum(self.now_s - c.start_s for c in request.copies if c.state == RUNNING)
-        return (self.server_energy_j[j] + self.per_process_w * running_s, self.radio_energy_j[j],
-                self.saved_energy_j[j])
-
-    def schedule_outages(self) -> None:
-        for server, intervals in zip(self.servers, self.settings.outages, strict=False):
-            for down_s, up_s in intervals:
-                self.schedule(down_s, self.on_server_down, server)
-                if up_s < math.inf:
-                    self.schedule(up_s, self.on_server_up, server)
-
     # --- servers --------------------------------------------------------------------------------
 
     def start(self, server: Server, copy: Copy) -> None:
@@ -342,38 +291,6 @@ class Simulation:
         copy.reply_left_s = self.now_s + 2.0 * output_s
         self.charge_download(copy.request, 1.0, 2.0 * output_s)
         self.schedule(self.now_s + 2.0 * output_s + copy.propagation_s, self.on_reply, copy)
-
-    # --- links ----------------------------------------------------------------------------------
-
-    def start_transfer(self, copy: Copy, link: Link, time_by_level_s: list[float]) -> None:
-        transfer = Transfer(copy, link, time_by_level_s, self.now_s, since_s=self.now_s)
-        copy.transfer = transfer
-        link.transfers.append(transfer)
-        self.link_changed(link)
-
-    def leave_link(self, transfer: Transfer) -> None:
-        link = transfer.link
-        link.transfers.remove(transfer)
-        transfer.copy.transfer = None
-        if link.transfers:
-            self.link_changed(link)
-
-    def link_changed(self, link: Link) -> None:
-        """The link's number of transfers (or its server's background) changed: bring every
-        transfer on it up to now at its old pace and reschedule its end at the new level."""
-        now_s = self.now_s
-        level = self.level_of(link.server.background + len(link.transfers) - 1)
-        for transfer in link.transfers:
-            self.schedule(transfer.rescale(now_s, level), self.on_transfer_end, transfer, transfer.version)
-
-    def start_background(self) -> None:
-        rows = self.settings.background
-        if not rows:
-            return
-        for server in self.servers:
-            server.background = rows[0][server.index]
-        if math.isfinite(self.settings.background_period_s):
-            self.schedule(self.settings.background_period_s, self.on_background_change, 1)
 
     # --- events ---------------------------------------------------------------------------------
 
@@ -478,96 +395,6 @@ class Simulation:
             self.saved_energy_j[copy.request.index] += saved_j * max(0.0, copy.finish_virtual_s - server.virtual_s)
             self.occupancy_changed(server)
 
-    def on_transfer_end(self, transfer: Transfer, version: int) -> None:
-        """``transfer`` has sent everything (unless a later change moved its end)."""
-        copy = transfer.copy
-        if version != transfer.version or copy.transfer is not transfer:
-            return
-        transfer_s = self.now_s - transfer.started_s
-        term_s = 0.5 * transfer_s  # one of Eq. 1's two equal transfer terms
-        self.leave_link(transfer)
-        if transfer.link.is_up:
-            copy.output_s = term_s
-            self.charge_download(copy.request, 1.0, transfer_s)
-            self.schedule(self.now_s + copy.propagation_s, self.on_reply, copy)
-        else:
-            copy.input_s = term_s
-            self.charge_upload(copy.request, 1.0, transfer_s)
-            self.schedule(self.now_s + copy.propagation_s, self.on_arrival, copy)
-
     def on_hedge_timer(self, request: Request, _: int) -> None:
         if not request.done:
             self.send_next_hedge(request)
-
-    def on_timeout(self, request: Request, _: int) -> None:
-        """No reply within the time-out: the on-device fallback, after it."""
-        if request.done:
-            return
-        any_lost, all_lost = False, True
-        for copy in request.copies:
-            if copy.state == REFUSED:
-                continue
-            if copy.state != LOST and self.lost_on_the_way(copy):
-                self.lose(copy)
-            if copy.state == LOST:
-                any_lost = True
-            else:
-                all_lost = False
-        reason = END_ALL_LOST_CODE if any_lost and all_lost else END_TIMEOUT_CODE
-        self.finish(request, self.timeout_s + self.settings.fallback_latency_s, None, reason)
-        request.unsent = None
-        if self.settings.cancel:
-            self.cancel_others(request)
-
-    def on_server_down(self, server: Server, _version: int) -> None:
-        """``server`` fails: every copy on it or on its links is lost, its slots and links free."""
-        now_s = self.now_s
-        server.advance(now_s)
-        server.is_down = True
-        server.down_starts_s.append(now_s)
-        for *_, copy in server.jobs:
-            if copy.state == RUNNING:
-                server.own -= 1
-                self.stop_computing(copy)
-                self.lose(copy)
-        server.jobs.clear()
-        for copy in server.queue:
-            if copy.state == QUEUED:
-                server.waiting -= 1
-                self.lose(copy)
-        server.queue.clear()
-        for link in (server.down, server.up):
-            for transfer in link.transfers:
-                copy = transfer.copy
-                sent, transfer_s = transfer.sent_fraction(now_s), now_s - transfer.started_s
-                if link.is_up:
-                    self.charge_download(copy.request, sent, transfer_s)
-                else:
-                    self.charge_upload(copy.request, sent, transfer_s)
-                copy.transfer = None
-                self.lose(copy)
-            link.transfers.clear()
-        self.reschedule(server)  # nothing runs: its pending completion goes stale
-
-    def on_server_up(self, server: Server, _: int) -> None:
-        """``server`` is repaired: it serves the copies that reach it from now on."""
-        server.is_down = False
-
-    def on_background_change(self, period: int, _: int) -> None:
-        """Background tenants take period ``period``'s values."""
-        rows = self.settings.background
-        row = rows[period % len(rows)]
-        for server in self.servers:
-            tenants = row[server.index]
-            if tenants == server.background:
-                continue
-            server.advance(self.now_s)
-            server.background = tenants
-            self.occupancy_changed(server)
-            if self.shared_links:
-                for link in (server.down, server.up):
-                    if link.transfers:
-                        self.link_changed(link)
-        # Background changes only matter while requests remain.
-        if self.next_request < self.n_requests or self.events:
-            self.schedule(self.now_s + self.settings.background_period_s, self.on_background_change, period + 1)
