@@ -89,20 +89,14 @@ from yafs_safetail.methods.safetail.presets import PRESET_NAMES, get_preset
 from yafs_safetail.methods.safetail.reward import REWARD_NAMES, REWARDS, copy_price, latency_score
 from yafs_safetail.methods.safetail.spaces import (
     StateScales,
-    encode_state,
     n_actions,
-    state_dim,
     subset_of,
 )
+from yafs_safetail.observation_space import OBSERVATION_KINDS, encode_observation, observation_space
 from yafs_safetail.record import PHASES, RequestRecord
 
-OBSERVATION_KINDS = ("dict", "vector")
 #: The name of the threads that run a world (tests count them to find leaks).
 ENGINE_THREAD_NAME = "contention-env-engine"
-_PER_SERVER = ("server_uplink_bps", "server_downlink_bps", "server_memory_util", "server_cpu_util",
-               "server_active_users", "server_median_propagation_s", "server_max_load")
-_SCALARS = ("input_bytes", "est_output_bytes", "user_uplink_bps", "user_downlink_bps")
-_FRACTIONS = ("server_memory_util", "server_cpu_util")
 _DEFAULTS = ContentionConfig()
 
 
@@ -277,7 +271,7 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         self._kind = observation
         self._scales = StateScales.for_use_case(self.use_case.number)
         n_gamma, n_location = len(self.use_case.gamma_columns), len(self._scenario.user_location)
-        self.observation_space = _observation_space(observation, n, n_gamma, n_location)
+        self.observation_space = observation_space(observation, n, n_gamma, n_location)
         self.world: ContentionWorld | None = None
         self._run: _EngineRun | None = None
         self._stop_on_collect: weakref.finalize | None = None
@@ -378,24 +372,5 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         return {"observation": self._observation, "request": self._observation.step}
 
     def _encode(self, observation: Observation) -> Any:
-        if self._kind == "vector":
-            return encode_state(observation, self._scales)
-        encoded = {}
-        for name in self.observation_space.keys():  # type: ignore[attr-defined]
-            encoded[name] = np.asarray(getattr(observation, name), dtype=np.float32).reshape(-1)
-        return encoded
+        return encode_observation(self.observation_space, observation, self._scales)
 
-
-def _observation_space(kind: str, n_servers: int, n_gamma: int, n_location: int) -> spaces.Space[Any]:
-    """SafeTail's state vector, or ω^t field by field (the fields of ``SafeTail-v0``)."""
-    if kind == "vector":
-        return spaces.Box(-np.inf, np.inf, (state_dim(n_servers, n_gamma, n_location),), np.float32)
-    fields: dict[str, spaces.Space[Any]] = {}
-    for name in _PER_SERVER:
-        fields[name] = spaces.Box(0.0, 1.0 if name in _FRACTIONS else np.inf, (n_servers,), np.float32)
-    for name in _SCALARS:
-        fields[name] = spaces.Box(0.0, np.inf, (1,), np.float32)
-    if n_gamma:
-        fields["gamma"] = spaces.Box(0.0, np.inf, (n_gamma,), np.float32)
-    fields["user_location"] = spaces.Box(-np.inf, np.inf, (n_location,), np.float32)
-    return spaces.Dict(fields)

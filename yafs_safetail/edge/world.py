@@ -9,6 +9,7 @@ it and the input helpers are importable from here too (the examples and most cal
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,12 @@ from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.edge import calibration, sampling
 from yafs_safetail.edge.calibration import LANDED, WorldSettings
 from yafs_safetail.edge.energy import EnergyModel
-from yafs_safetail.edge.failures import FailureSettings, effective_timeout_s, phase_down_intervals
+from yafs_safetail.edge.failures import (
+    DownIntervals,
+    FailureSettings,
+    effective_timeout_s,
+    phase_down_intervals,
+)
 from yafs_safetail.edge.inputs import (
     TraceInputs,
     WorldError,
@@ -157,6 +163,20 @@ def _fallback_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampling
     return settings.fallback_compute_multiple * float(inputs.median_compute_by_k_s[0])
 
 
+def _phase_failures(failures: FailureSettings, stream: np.random.SeedSequence, n_servers: int,
+                    horizon_s: float, worst_copy_latency_s: Callable[[], float]) -> tuple[DownIntervals | None, float]:
+    """The phase's outages and the user's time-out (none and ``inf`` without failures).
+
+    Drawn last, from their own stream: a world without failures draws nothing here, and a world
+    with them has exactly the same requests, bandwidths, loads and RTTs.
+    """
+    down_intervals = (phase_down_intervals(failures, n_servers, horizon_s, np.random.default_rng(stream))
+                      if failures.enabled else None)
+    timeout_s = (effective_timeout_s(failures, worst_copy_latency_s())
+                 if failures.enabled or failures.timeout_s is not None else math.inf)
+    return down_intervals, timeout_s
+
+
 def build_world(
     scenario: EdgeScenario,
     use_case: UseCase,
@@ -222,13 +242,9 @@ def build_world(
         scales.server_extra_propagation_s, settings.propagation_rtt_fraction)
     target_compute_s = target_compute_by_request_s(inputs, requests.gamma, nu, settings.target_compute)
     failures = FailureSettings() if failures is None else failures
-    # Drawn last, from their own stream: a world without failures draws nothing here, and a
-    # world with them has exactly the same requests, bandwidths, loads and RTTs.
-    down_intervals = (phase_down_intervals(failures, n, (n_steps + 1) * step_interval_s,
-                                           np.random.default_rng(streams["failures"]))
-                      if failures.enabled else None)
-    timeout_s = (effective_timeout_s(failures, _worst_copy_latency_s(use_case, inputs, scales, max_load))
-                 if failures.enabled or failures.timeout_s is not None else math.inf)
+    down_intervals, timeout_s = _phase_failures(
+        failures, streams["failures"], n, (n_steps + 1) * step_interval_s,
+        lambda: _worst_copy_latency_s(use_case, inputs, scales, max_load))
     return EdgeWorld(
         seed=int(seed),
         phase=phase,

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -59,6 +58,7 @@ from yafs_safetail.runs.settings import (
     NON_NEGATIVE_NUMBER,
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
+    PROBABILITY_BELOW_ONE,
     Check,
     Setting,
     has_setting,
@@ -86,23 +86,6 @@ __all__ = [
 
 class ExperimentError(ValueError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
-
-
-def _probability_below_one(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}") from None
-    if not 0.0 <= value < 1.0:  # also refuses nan
-        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}")
-    return value
-
-
-#: A server's stationary unavailability: 1 would be a server that is never up.
-PROBABILITY_BELOW_ONE = Check(
-    "a probability in [0, 1)",
-    lambda v: not isinstance(v, bool) and isinstance(v, float | int) and math.isfinite(v) and 0 <= v < 1,
-    _probability_below_one)
 
 
 #: SafeTail's learners (the ``--learner`` choices: defaults.OBJECTIVES, which the learner uses too).

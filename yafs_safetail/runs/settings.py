@@ -82,6 +82,24 @@ LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_int
                _redundancy_levels)
 
 
+def _probability_below_one(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}") from None
+    if not 0.0 <= value < 1.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}")
+    return value
+
+
+#: A server's stationary unavailability: 1 would be a server that is never up.
+PROBABILITY_BELOW_ONE = Check(
+    "a probability in [0, 1)",
+    lambda v: not isinstance(v, bool) and isinstance(v, float | int) and math.isfinite(v) and 0 <= v < 1,
+    _probability_below_one)
+
+
+
 # ----------------------------------------------------------------------------- settings
 
 

@@ -65,18 +65,13 @@ from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.safetail.reward import priced_reward, reward
-from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, n_actions, subset_of
+from yafs_safetail.methods.safetail.spaces import StateScales, n_actions, subset_of
+from yafs_safetail.observation_space import OBSERVATION_KINDS, encode_observation, observation_space
 from yafs_safetail.record import PHASES, RequestRecord
 from yafs_safetail.runs.config import ExperimentConfig
 from yafs_safetail.runs.world_recipe import world_recipe
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
-
-OBSERVATION_KINDS = ("dict", "vector")
-_PER_SERVER = ("server_uplink_bps", "server_downlink_bps", "server_memory_util", "server_cpu_util",
-               "server_active_users", "server_median_propagation_s", "server_max_load")
-_SCALARS = ("input_bytes", "est_output_bytes", "user_uplink_bps", "user_downlink_bps")
-_FRACTIONS = ("server_memory_util", "server_cpu_util")
 
 
 class _AgentsChoice(Policy):
@@ -195,21 +190,7 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         self._kind = observation
         self._scales = StateScales.for_use_case(self.use_case.number)
         n_gamma, n_location = len(self.use_case.gamma_columns), len(self.scenario.user_location)
-        if observation == "vector":
-            from yafs_safetail.methods.safetail.spaces import state_dim
-
-            dim = state_dim(n, n_gamma, n_location)
-            self.observation_space = spaces.Box(-np.inf, np.inf, (dim,), np.float32)
-        else:
-            fields: dict[str, spaces.Space[Any]] = {}
-            for name in _PER_SERVER:
-                fields[name] = spaces.Box(0.0, 1.0 if name in _FRACTIONS else np.inf, (n,), np.float32)
-            for name in _SCALARS:
-                fields[name] = spaces.Box(0.0, np.inf, (1,), np.float32)
-            if n_gamma:
-                fields["gamma"] = spaces.Box(0.0, np.inf, (n_gamma,), np.float32)
-            fields["user_location"] = spaces.Box(-np.inf, np.inf, (n_location,), np.float32)
-            self.observation_space = spaces.Dict(fields)
+        self.observation_space = observation_space(observation, n, n_gamma, n_location)
         self.world: EdgeWorld | None = None
         self._simulation: Simulation | None = None
         self._agent = _AgentsChoice(n, np.random.default_rng(0))
@@ -273,9 +254,4 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         return self._simulation.edge.observe(self._step)
 
     def _encode(self, observation: Observation) -> Any:
-        if self._kind == "vector":
-            return encode_state(observation, self._scales)
-        encoded = {}
-        for name in self.observation_space.keys():  # type: ignore[attr-defined]
-            encoded[name] = np.asarray(getattr(observation, name), dtype=np.float32).reshape(-1)
-        return encoded
+        return encode_observation(self.observation_space, observation, self._scales)
