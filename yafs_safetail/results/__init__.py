@@ -26,23 +26,16 @@ from yafs_safetail.methods.registry import (
 from yafs_safetail.record import PHASES, REQUESTS_COLUMNS
 from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.files import (
-    LEARNING_RATE_OVERRIDE_KEY,
     PERCENTILES,
-    PLACEMENT_KEY,
     REQUESTS_FILE,
     RUN_FILE,
-    RUN_JSON_KEYS,
     SUMMARY_COLUMNS,
-    WORLD_OVERRIDES_KEY,
     ResultsFileError,
-    RunMetadata,
     file_mode,
     read_requests_csv,
-    read_run_json,
     read_summary_csv,
     thin_percentiles,
     write_requests_csv,
-    write_run_json,
     write_text_atomic,
 )
 from yafs_safetail.results.paper import (
@@ -61,6 +54,15 @@ from yafs_safetail.results.report import (
     summary_markdown,
     write_results,
     write_summary,
+)
+from yafs_safetail.results.run_json import (
+    LEARNING_RATE_OVERRIDE_KEY,
+    PLACEMENT_KEY,
+    RUN_JSON_KEYS,
+    WORLD_OVERRIDES_KEY,
+    RunMetadata,
+    read_run_json,
+    write_run_json,
 )
 from yafs_safetail.results.stats import (
     abs_reward_by_episode,

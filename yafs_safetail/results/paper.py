@@ -25,12 +25,8 @@ import pandas as pd
 from yafs_safetail.edge.calibration import WORLD_NAMES
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, REPOSITORY
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, baselines_of
-from yafs_safetail.results.files import (
-    PERCENTILES,
-    PLACEMENT_KEY,
-    WORLD_OVERRIDES_KEY,
-    RunMetadata,
-)
+from yafs_safetail.results.files import PERCENTILES
+from yafs_safetail.results.run_json import PLACEMENT_KEY, WORLD_OVERRIDES_KEY, RunMetadata
 from yafs_safetail.results.stats import _load_runs, geometric_interval, speedup
 
 PERCENTILE_NAMES: dict[int, str] = {50: "median", 90: "p90", 95: "p95", 99: "p99"}

@@ -18,19 +18,21 @@ from yafs_safetail.results.files import (
     RUN_FILE,
     SUMMARY_CSV_FILE,
     SUMMARY_MD_FILE,
-    RunMetadata,
     _csv_text,
     read_requests_csv,
-    read_run_json,
     thin_percentiles,
     write_requests_csv,
-    write_run_json,
     write_text_atomic,
 )
 from yafs_safetail.results.paper import (
     PERCENTILE_NAMES,
     setting_differences,
     speedup_table,
+)
+from yafs_safetail.results.run_json import (
+    RunMetadata,
+    read_run_json,
+    write_run_json,
 )
 from yafs_safetail.results.stats import summarize
 

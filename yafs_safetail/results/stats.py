@@ -26,12 +26,14 @@ from yafs_safetail.results.files import (
     SUMMARY_COLUMNS,
     SUMMARY_CSV_FILE,
     ResultsFileError,
-    RunMetadata,
     _require_columns,
     read_requests_csv,
-    read_run_json,
     read_summary_csv,
     thin_percentiles_text,
+)
+from yafs_safetail.results.run_json import (
+    RunMetadata,
+    read_run_json,
 )
 
 # --------------------------------------------------------------------------------------------

@@ -60,10 +60,10 @@ from yafs_safetail.results.files import (
     PERCENTILES,
     ResultsFileError,
     read_requests_csv,
-    read_run_json,
     read_summary_csv,
 )
 from yafs_safetail.results.paper import MINPROP_3, PAPER_CLAIMS, PAPER_RATIOS, PERCENTILE_NAMES
+from yafs_safetail.results.run_json import read_run_json
 
 
 @dataclass(frozen=True, slots=True)
