@@ -29,6 +29,7 @@ from typing import Any
 import pandas as pd
 
 from yafs_safetail.contention.run import run_policy, summarise
+from yafs_safetail.contention.sweep_checks import failure_level_list as failure_level_list
 
 # The sweeps' configuration, declared where the commands' options can read it before anything
 # heavy loads; every name is importable from here too, as before.
@@ -57,7 +58,6 @@ from yafs_safetail.contention.sweep_config import FailureSweepConfig as FailureS
 from yafs_safetail.contention.sweep_config import SafeTailVariant as SafeTailVariant
 from yafs_safetail.contention.sweep_config import SweepAxis as SweepAxis
 from yafs_safetail.contention.sweep_config import SweepConfig as SweepConfig
-from yafs_safetail.contention.sweep_config import failure_level_list as failure_level_list
 from yafs_safetail.contention.world import ContentionError, ContentionWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy

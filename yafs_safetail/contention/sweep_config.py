@@ -12,27 +12,30 @@ sweeps and re-exports every name here.
 
 from __future__ import annotations
 
-import argparse
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from yafs_safetail.cli import load_list
 from yafs_safetail.contention.config import (
     SUMMARY_COLUMNS,
     TARGETS,
     ContentionConfig,
     ContentionError,
 )
-from yafs_safetail.defaults import OBJECTIVES, PRESET_NAMES, SAFETAIL, SAFETAIL_DISPATCH
+from yafs_safetail.contention.sweep_checks import (
+    FAILURE_LEVELS,
+    LEARNERS,
+    LOADS,
+    METHOD_NAMES,
+    ONE_LOAD,
+)
+from yafs_safetail.defaults import PRESET_NAMES, SAFETAIL, SAFETAIL_DISPATCH
 from yafs_safetail.edge.failure_settings import DEFAULT_MTTR_S, FailureSettings
 from yafs_safetail.runs.settings import (
     BOOLEAN,
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
-    Check,
     one_of,
     setting,
 )
@@ -97,72 +100,6 @@ LOAD_POINT = "load_point"
 FAILURE_POINT = "failure_point"
 LOAD_AXIS = SweepAxis("load", "load", "load", LOAD_POINT)
 FAILURE_AXIS = SweepAxis("failure_level", "failure level", "level", FAILURE_POINT)
-
-
-def _method_names(text: str) -> tuple[str, ...]:
-    """``--methods``: comma-separated method names (checked when the sweep builds them)."""
-    return tuple(name.strip() for name in text.split(",") if name.strip())
-
-
-#: The methods a sweep may be given (any baseline name; checked when the policies are built).
-METHOD_NAMES = Check("comma-separated method names",
-                     lambda v: isinstance(v, tuple) and all(isinstance(m, str) for m in v), _method_names)
-
-
-def _learner_names(text: str) -> tuple[str, ...]:
-    """``--learner``: one or both of OBJECTIVES, comma-separated, in the order given."""
-    names = tuple(name.strip() for name in text.split(",") if name.strip())
-    if not names or len(set(names)) != len(names) or any(name not in OBJECTIVES for name in names):
-        raise argparse.ArgumentTypeError(f"expected distinct names of {', '.join(OBJECTIVES)}, got {text!r}")
-    return names
-
-
-#: SafeTail's learners: distinct names of OBJECTIVES.
-LEARNERS = Check(f"distinct names of {', '.join(OBJECTIVES)}", lambda v: isinstance(v, tuple) and bool(v) and len(
-    set(v)) == len(v) and all(name in OBJECTIVES for name in v), _learner_names)
-#: Offered loads: distinct utilisations in (0, 10).
-LOADS = Check("distinct loads in (0, 10)", lambda v: isinstance(v, tuple) and len(set(v)) == len(v) and all(
-    not isinstance(x, bool) and isinstance(x, float | int) and 0 < x < 10 for x in v), load_list)
-
-
-def _is_load(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, float | int) and 0 < value < 10
-
-
-def _one_load(text: str) -> float:
-    """``--load``: one offered load in (0, 10)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not _is_load(value):
-        raise argparse.ArgumentTypeError(f"expected a load in (0, 10), got {text!r}")
-    return value
-
-
-#: The failure sweep's one offered load.
-ONE_LOAD = Check("a load in (0, 10)", _is_load, _one_load)
-
-
-def _is_failure_level(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, float | int) and 0 <= value < 1
-
-
-def failure_level_list(text: str) -> tuple[float, ...]:
-    """``--failure-levels``: distinct per-server down probabilities in [0, 1), comma-separated,
-    returned ascending (the sweep's points rise)."""
-    try:
-        levels = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
-    if not levels or not all(_is_failure_level(level) for level in levels) or len(set(levels)) != len(levels):
-        raise argparse.ArgumentTypeError(f"expected distinct probabilities in [0, 1), got {text!r}")
-    return tuple(sorted(levels))
-
-
-#: Failure levels: distinct stationary down probabilities in [0, 1).
-FAILURE_LEVELS = Check("distinct probabilities in [0, 1)", lambda v: isinstance(v, tuple) and bool(v) and len(
-    set(v)) == len(v) and all(_is_failure_level(x) for x in v), failure_level_list)
 
 
 def _scaled_steps(steps: int, scale: float) -> int:
