@@ -33,3 +33,21 @@ def test_without_failures_the_report_is_as_before():
     off = dict(FAILURES, enabled=False)
     assert summary_markdown(summary, dataclasses.replace(make_run(), extra={"failures": off})) == plain
     assert "## Failures and energy" not in plain
+
+
+def test_the_heading_names_the_settings_a_run_changed():
+    from pathlib import Path
+
+    from yafs_safetail.runs.config import ExperimentConfig
+    from yafs_safetail.runs.provenance import titled_settings
+    from yafs_safetail.runs.settings import changed_settings
+
+    assert changed_settings(ExperimentConfig(use_case=2, seed=7, steps_scale=0.1, figures=False), skip=titled_settings()) == ()
+    changed = changed_settings(ExperimentConfig(failure_probability=0.2, topology=Path("t/mesh.json")),
+                               skip=titled_settings())
+    assert set(changed) == {"--failure-probability 0.2", "--topology mesh.json"}
+    summary = summarize(make_requests(np.random.default_rng(3)))
+    run = dataclasses.replace(make_run(), extra={"changed_settings": list(changed)})
+    heading = summary_markdown(summary, run).splitlines()[0]
+    assert heading.endswith("seed 0; " + ", ".join(changed))
+    assert summary_markdown(summary, make_run()).splitlines()[0].endswith("seed 0")

@@ -106,7 +106,8 @@ def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
     figure.subplots_adjust(left=0.12, right=0.97, bottom=0.17, top=0.85)
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
-    axes.set_title(f"{title}\nuse case {run.use_case}, preset {run.preset}{run.learning_rate_note}")
+    axes.set_title(f"{title}\nuse case {run.use_case}, preset {run.preset}{run.learning_rate_note}"
+                   f"{run.settings_note}")
     # The long use-case name goes in the footer, where it cannot run off the figure's edge.
     figure.text(0.99, 0.005, f"{run.use_case_name}; seed {run.seed}, β = {run.beta}, "
                 f"yafs-safetail {run.package_version}",

@@ -56,6 +56,7 @@ from yafs_safetail.results.report import (
     write_summary,
 )
 from yafs_safetail.results.run_json import (
+    CHANGED_SETTINGS_KEY,
     LEARNING_RATE_OVERRIDE_KEY,
     PLACEMENT_KEY,
     RUN_JSON_KEYS,
@@ -86,6 +87,7 @@ __all__ = [
     "PERCENTILES",
     "PERCENTILE_NAMES",
     "PHASES",
+    "CHANGED_SETTINGS_KEY",
     "PLACEMENT_KEY",
     "REQUESTS_COLUMNS",
     "REQUESTS_FILE",

@@ -134,7 +134,7 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
 def _heading_lines(summary: pd.DataFrame, run: RunMetadata | None, differences: list[str]) -> list[str]:
     if run:
         title = (f"# SafeTail results: use case {run.use_case} ({run.use_case_name}), "
-                 f"preset `{run.preset}`{run.learning_rate_note}, seed {run.seed}")
+                 f"preset `{run.preset}`{run.learning_rate_note}, seed {run.seed}{run.settings_note}")
     else:
         title = "# SafeTail results (no run.json: use case, preset and seed unknown)"
     lines = [title, ""]

@@ -27,6 +27,9 @@ WORLD_OVERRIDES_KEY = "world_overrides"
 #: ``run.json`` key of the placement file used (beside ``topology``); absent in runs written
 #: before it was recorded.
 PLACEMENT_KEY = "placement"
+#: ``run.json`` key of the result-changing options a run set away from their defaults, as options
+#: (``["--failure-probability 0.2"]``); absent when none was.
+CHANGED_SETTINGS_KEY = "changed_settings"
 
 
 @dataclass(slots=True)
@@ -69,6 +72,13 @@ class RunMetadata:
         (--learning-rate)`` for a run whose learning rate was not the preset's."""
         rate = self.extra.get(LEARNING_RATE_OVERRIDE_KEY)
         return "" if rate is None else f", learning rate {rate:g} (--learning-rate)"
+
+    @property
+    def settings_note(self) -> str:
+        """What titles add after the seed: empty, or ``; --failure-probability 0.2`` for a run
+        that set options beyond use case, preset and seed."""
+        changed = self.extra.get(CHANGED_SETTINGS_KEY) or []
+        return "" if not changed else "; " + ", ".join(map(str, changed))
 
     def to_json(self) -> str:
         """Deterministic JSON text (sorted keys, two-space indent, trailing newline)."""

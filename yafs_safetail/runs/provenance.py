@@ -14,6 +14,7 @@ from yafs_safetail import results
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
+from yafs_safetail.runs.settings import changed_settings
 
 if TYPE_CHECKING:
     from yafs_safetail.edge.phase_world import EdgeWorld
@@ -22,6 +23,17 @@ if TYPE_CHECKING:
 #: ``run.json`` keys of the run itself that a learner's fields replace: the run's preset and β
 #: are those of the learner's settings (SafeTail's, which ``--policy`` reads from its file).
 LEARNER_SET_KEYS = ("preset", "beta")
+#: Settings every title names already (use case, preset, seed) or the run records apart (its
+#: budget, its learning rate): ``changed_settings`` leaves them out, and the output's own.
+TITLED_SETTINGS = ("use_case", "preset", "seed", "steps_scale", "learning_rate")
+
+
+def titled_settings() -> tuple[str, ...]:
+    """The settings titles never list: :data:`TITLED_SETTINGS` and what the output is (figures,
+    formats, folder: they change which files exist, not what any says)."""
+    from yafs_safetail.runs.config import Output
+
+    return (*TITLED_SETTINGS, *(item.name for item in dataclasses.fields(Output)))
 
 
 def recorded_path(path: Path) -> str:
@@ -95,6 +107,9 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
         **({results.LEARNING_RATE_OVERRIDE_KEY: float(config.learning_rate)}
            if config.learning_rate is not None else {}),
         **({"campaign_run_id": config.run_id} if config.run_id else {}),
+        # Only when any is set: what the titles of its figures and summary.md add.
+        **({results.CHANGED_SETTINGS_KEY: list(changed)} if (changed := changed_settings(
+            config, skip=titled_settings())) else {}),
     }
     own = [key for key in learned
            if key in extra or (key in results.RUN_JSON_KEYS and key not in LEARNER_SET_KEYS)]

@@ -16,6 +16,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from yafs_safetail import cli
@@ -158,3 +159,42 @@ def setting_of(item: dataclasses.Field[Any]) -> Setting:
 def has_setting(item: dataclasses.Field[Any]) -> bool:
     """Whether a configuration field was declared with :func:`setting`."""
     return isinstance(item.metadata.get(_SETTING), Setting)
+
+
+def changed_settings(config: Any, skip: Sequence[str] = ()) -> tuple[str, ...]:
+    """The settings of ``config`` that change results and were set away from their defaults, as
+    the options that set them (``--failure-probability 0.2``, ``--topology mesh.json``): what a
+    run's figure titles and report heading add to its use case, preset and seed (``skip``).
+
+    Files are named by their file name; a setting left at its default is never listed, so a
+    run with none set says nothing more than before.
+    """
+    changed: list[str] = []
+    for item in dataclasses.fields(config):
+        if not has_setting(item) or item.name in skip:
+            continue
+        about = setting_of(item)
+        if not about.changes_results:
+            continue
+        default = item.default if item.default is not dataclasses.MISSING else (
+            item.default_factory() if item.default_factory is not dataclasses.MISSING else dataclasses.MISSING)
+        value = getattr(config, item.name)
+        if value == default:
+            continue
+        option = about.option(item.name) or item.name
+        if isinstance(value, bool):
+            changed.append(option)
+            continue
+        shown = _shown(value)
+        changed.append(f"{option} {shown}")
+    return tuple(changed)
+
+
+def _shown(value: Any) -> str:
+    if isinstance(value, Path):
+        return value.name
+    if isinstance(value, tuple | list):
+        return ",".join(_shown(item) for item in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
