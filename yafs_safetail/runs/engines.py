@@ -255,12 +255,22 @@ def _execute_and_pack(task: RunTask) -> RunResult:
     """On a Ray node: run into a private temporary folder and return it as a tar archive."""
     import ray
 
+    from yafs_safetail.cli import Terminated
+
     _init_worker()
     scratch = Path(tempfile.mkdtemp(prefix="yafs-safetail-run-"))
     try:
         folder = scratch / Path(task.spec.name).name
-        result = replace(execute(replace(task, out_dir=str(folder), overwrite=False)),
-                         node=ray.get_runtime_context().get_node_id()[:8])
+        try:
+            done = execute(replace(task, out_dir=str(folder), overwrite=False))
+        except Terminated:
+            # SIGTERM on a Ray node is the node (or Ray) ending this worker. Raised on, it would
+            # reach Ray as the task's own error, which Ray never retries; a worker that dies is
+            # retried elsewhere (max_retries). So the run unwinds (done), the scratch goes, and
+            # the process ends as a dead worker would.
+            shutil.rmtree(scratch, ignore_errors=True)
+            os._exit(1)
+        result = replace(done, node=ray.get_runtime_context().get_node_id()[:8])
         if result.error:
             return result
         buffer = io.BytesIO()
