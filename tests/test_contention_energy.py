@@ -7,52 +7,24 @@ import math
 
 import numpy as np
 import pytest
+from contention_helpers import RADIO, run_hand_made
 
-from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec, run_engine
 from yafs_safetail.contention.run import run_policy
 from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
-from yafs_safetail.edge.energy import EnergyModel, RadioPowerModel, ServerPowerModel
+from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import FailureSettings
 from yafs_safetail.methods.registry import make_baseline
 
 PER_PROCESS_W = 2.5
-RADIO = RadioPowerModel()
-
-
-class Fixed:
-    wants_outcomes = True
-
-    def __init__(self, plan, mode="all", delay_s=math.inf):
-        self.plan, self.mode, self.delay_s = plan, mode, delay_s
-        self.outcomes = {}
-
-    def choose(self, request, active_users):
-        return self.plan[request]
-
-    def hedge_delay_s(self):
-        return self.delay_s
-
-    def completed(self, outcome):
-        self.outcomes[outcome.request] = outcome
 
 
 def engine(work, emit, plan, *, slots=2, speed=(1.0, 1.0, 0.5, 1 / 3, 0.25), rtt=0.1, input_s=0.0,
            output_s=0.0, input_bytes=0.0, output_bytes=0.0, cancel=True, queue=False, outages=(),
            timeout_s=math.inf, mode="all", delay_s=math.inf, shared=True):
-    n_servers = len(work[0])
-    block = RequestBlock(first=0, input_transfer_s=[[input_s] * n_servers for _ in work],
-                         output_transfer_s=[[output_s] * n_servers for _ in work],
-                         propagation_s=[[rtt] * n_servers for _ in work], work_s=work,
-                         input_bytes=[input_bytes] * len(work), output_bytes=[output_bytes] * len(work))
-    settings = EngineSettings(servers=tuple(ServerSpec(slots, speed) for _ in range(n_servers)),
-                              contention_levels=1, queue=queue, cancel=cancel, fallback_latency_s=9.0,
-                              shared_links=shared, outages=outages, timeout_s=timeout_s,
-                              per_process_w=PER_PROCESS_W,
-                              radio_up_j_per_byte=8.0 * RADIO.alpha_up_w_per_bps,
-                              radio_down_j_per_byte=8.0 * RADIO.alpha_down_w_per_bps,
-                              radio_active_w=RADIO.beta_w)
-    dispatcher = Fixed(plan, mode, delay_s)
-    return run_engine(settings, emit, len(work), lambda _: block, dispatcher), dispatcher
+    return run_hand_made(work, emit, plan, outages=outages, slots=slots, speed=speed, rtt=rtt, input_s=input_s,
+                         output_s=output_s, input_bytes=input_bytes, output_bytes=output_bytes, cancel=cancel,
+                         queue=queue, timeout_s=timeout_s, mode=mode, delay_s=delay_s, shared=shared,
+                         fallback_latency_s=9.0, per_process_w=PER_PROCESS_W, radio=RADIO)
 
 
 def test_a_copy_is_charged_its_residence_time_under_processor_sharing():

@@ -8,14 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from contention_helpers import run_hand_made
 
-from yafs_safetail.contention.engine import (
-    EngineSettings,
-    RequestBlock,
-    RequestOutcome,
-    ServerSpec,
-    run_engine,
-)
 from yafs_safetail.contention.run import SUMMARY_COLUMNS, run_policy, summarise
 from yafs_safetail.contention.world import ContentionConfig, ContentionError, ContentionWorld
 from yafs_safetail.edge.failures import END_REASONS, FailureSettings
@@ -25,38 +19,13 @@ FALLBACK_S = 99.0
 TIMEOUT_S = 3.0
 
 
-class Fixed:
-    """Sends request j to ``plan[j]`` and keeps the outcomes by request."""
-
-    wants_outcomes = True
-
-    def __init__(self, plan, mode="all", delay_s=math.inf):
-        self.plan, self.mode, self.delay_s = plan, mode, delay_s
-        self.outcomes: dict[int, RequestOutcome] = {}
-
-    def choose(self, request, active_users):
-        return self.plan[request]
-
-    def hedge_delay_s(self):
-        return self.delay_s
-
-    def completed(self, outcome):
-        self.outcomes[outcome.request] = outcome
-
-
 def engine(work, emit, plan, outages, *, slots=1, rtt=0.1, output_s=0.0, mode="all", delay_s=math.inf,
            cancel=True, timeout_s=TIMEOUT_S, shared=True):
     """Two-or-more-server worlds without contention levels: ``output_s`` is every reply's one-way
     transfer term (its transfer takes twice that), inputs take no time."""
-    n_servers = len(work[0])
-    block = RequestBlock(first=0, input_transfer_s=[[0.0] * n_servers for _ in work],
-                         output_transfer_s=[[output_s] * n_servers for _ in work],
-                         propagation_s=[[rtt] * n_servers for _ in work], work_s=work)
-    settings = EngineSettings(servers=tuple(ServerSpec(slots, (1.0, 1.0, 0.5, 1 / 3)) for _ in range(n_servers)),
-                              contention_levels=1, queue=False, cancel=cancel, fallback_latency_s=FALLBACK_S,
-                              shared_links=shared, outages=outages, timeout_s=timeout_s, per_process_w=2.0)
-    dispatcher = Fixed(plan, mode, delay_s)
-    return run_engine(settings, emit, len(work), lambda _: block, dispatcher), dispatcher
+    return run_hand_made(work, emit, plan, outages=outages, slots=slots, speed=(1.0, 1.0, 0.5, 1 / 3), rtt=rtt,
+                         output_s=output_s, cancel=cancel, timeout_s=timeout_s, mode=mode, delay_s=delay_s,
+                         shared=shared, fallback_latency_s=FALLBACK_S, per_process_w=2.0)
 
 
 def reasons(result) -> list[str]:
