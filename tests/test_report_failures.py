@@ -51,3 +51,13 @@ def test_the_heading_names_the_settings_a_run_changed():
     heading = summary_markdown(summary, run).splitlines()[0]
     assert heading.endswith("seed 0; " + ", ".join(changed))
     assert summary_markdown(summary, make_run()).splitlines()[0].endswith("seed 0")
+
+
+def test_a_changed_setting_reads_the_same_in_any_run_and_any_folder():
+    from yafs_safetail.runs.settings import _shown
+
+    class UsersMethod:
+        spec = "Mine=/some/where/policy.py:Cls"
+
+    assert _shown((UsersMethod(), UsersMethod())) == "Mine=policy.py:Cls,Mine=policy.py:Cls"
+    assert _shown(object()) == "object"  # never a repr with an address

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -191,10 +192,17 @@ def changed_settings(config: Any, skip: Sequence[str] = ()) -> tuple[str, ...]:
 
 
 def _shown(value: Any) -> str:
+    """A setting's value as a title shows it: the same text for the same value in any run
+    (file names without their folders; a user's method by its spec; never an object's repr)."""
     if isinstance(value, Path):
         return value.name
     if isinstance(value, tuple | list):
         return ",".join(_shown(item) for item in value)
     if isinstance(value, float):
         return f"{value:g}"
-    return str(value)
+    if isinstance(value, str | int):
+        return str(value)
+    spec = getattr(value, "spec", None)  # a user's --method NAME=path/file.py:Class
+    if isinstance(spec, str):
+        return re.sub(r"[^=:]*/", "", spec)
+    return type(value).__name__
