@@ -103,6 +103,7 @@ def test_sweep_noise_benchmark_small_budget():
     assert all(0.8 < r < 1.25 for r in ratios)
 
 
+@pytest.mark.slow  # about a minute; the benchmark's own small-budget run stays in the suite
 def test_fidelity_benchmark_with_failed_runs_ends_without_a_traceback(tmp_path):
     # Too few training requests for use case 2 (refused before TensorFlow): the reproduction
     # fails, and the benchmark says so and stops instead of reading a report never written.
