@@ -200,7 +200,7 @@ def test_overwrite_on_a_full_disk_keeps_the_earlier_run_byte_for_byte(small_disk
 # --------------------------------------------------------------------------------------------
 # A campaign worker killed outright (SIGKILL, as the out-of-memory killer does)
 
-_GRID = "[base]\nsteps_scale = 0.013\nfigures = false\n[axes]\nseed = [0, 1, 2]\n"
+_GRID = "[base]\nsteps_scale = 0.013\nfigures = false\n[axes]\nseed = [0, 1]\n"
 
 
 def _campaign(cwd: Path, *extra: str, env: dict[str, str] | None = None):
@@ -243,7 +243,7 @@ def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_compl
     failed_lines = [line for line in killed.stderr.splitlines() if f"failed {victim.name}" in line]
     assert len(failed_lines) == 1 and "killed by signal 9 (SIGKILL)" in failed_lines[0], killed.stderr[-2000:]
     state = json.loads((out / "campaign.json").read_text())
-    assert [run["status"] for run in state["runs"]] == ["done", "failed", "done"]
+    assert [run["status"] for run in state["runs"]] == ["done", "failed"]
     assert "its worker process" in state["runs"][1]["error"]
     assert "killed by signal 9 (SIGKILL)" in state["runs"][1]["error"]
     assert not (out / victim.name).exists()
@@ -253,7 +253,7 @@ def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_compl
     again = _campaign(tmp_path / "killed")
     assert again.returncode == 0, again.stderr[-2000:]
     state = json.loads((out / "campaign.json").read_text())
-    assert [run["status"] for run in state["runs"]] == ["done earlier", "done", "done earlier"]
+    assert [run["status"] for run in state["runs"]] == ["done earlier", "done"]
     assert stamps == {name: (out / name / "run.json").stat().st_mtime_ns for name in stamps}
     assert _run_files(out) == _run_files(tmp_path / "uncut" / "campaign")
     # Nothing of the killed attempt is left: no temporary folder, no lock beside the runs.
