@@ -258,7 +258,9 @@ def _execute_and_pack(task: RunTask) -> RunResult:
     from yafs_safetail.cli import Terminated
 
     _init_worker()
+    # This task's own folder (mkdtemp): the only one the finally below removes.
     scratch = Path(tempfile.mkdtemp(prefix="yafs-safetail-run-"))
+    terminated = False
     try:
         folder = scratch / Path(task.spec.name).name
         try:
@@ -266,10 +268,10 @@ def _execute_and_pack(task: RunTask) -> RunResult:
         except Terminated:
             # SIGTERM on a Ray node is the node (or Ray) ending this worker. Raised on, it would
             # reach Ray as the task's own error, which Ray never retries; a worker that dies is
-            # retried elsewhere (max_retries). So the run unwinds (done), the scratch goes, and
-            # the process ends as a dead worker would.
-            shutil.rmtree(scratch, ignore_errors=True)
-            os._exit(1)
+            # retried elsewhere (max_retries). So the run unwinds, the scratch goes, and the
+            # process ends as a dead worker would (below).
+            terminated = True
+            raise
         result = replace(done, node=ray.get_runtime_context().get_node_id()[:8])
         if result.error:
             return result
@@ -280,6 +282,8 @@ def _execute_and_pack(task: RunTask) -> RunResult:
         return replace(result, archive=buffer.getvalue())
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+        if terminated:
+            os._exit(1)
 
 
 def unpack(result: RunResult, task: RunTask) -> RunResult:
