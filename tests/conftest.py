@@ -17,7 +17,8 @@ from yafs_safetail.edge.scenario import (
     load_scenario,
 )
 from yafs_safetail.edge.traces import TraceSet, load_traces
-from yafs_safetail.edge.usecases import get_use_case
+from yafs_safetail.edge.usecases import UseCase, get_use_case
+from yafs_safetail.edge.world import load_inputs
 from yafs_safetail.logs import PACKAGE_LOGGER, STDERR_HANDLER
 
 
@@ -50,3 +51,10 @@ def uc1_median_inputs(traces: TraceSet) -> TraceInputs:
 @pytest.fixture(scope="session")
 def paper_scenario() -> EdgeScenario:
     return load_scenario(DEFAULT_TOPOLOGY, DEFAULT_PLACEMENT)
+
+
+@pytest.fixture(scope="session")
+def uc1(paper_scenario: EdgeScenario) -> tuple[UseCase, EdgeScenario, TraceInputs]:
+    """Use case 1 in the paper's scenario with its trace inputs (the trained compute model)."""
+    use_case = get_use_case(1)
+    return use_case, paper_scenario, load_inputs(use_case)

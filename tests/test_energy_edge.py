@@ -13,9 +13,7 @@ import pytest
 
 from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import FailureSettings
-from yafs_safetail.edge.scenario import load_scenario
-from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import build_world, load_inputs
+from yafs_safetail.edge.world import build_world
 from yafs_safetail.methods.baselines import Oracle, RandX
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.safetail import StateScales, reward, state_dim
@@ -25,13 +23,6 @@ from yafs_safetail.sim.runner import deploy
 ROOT = Path(__file__).resolve().parents[1]
 #: Requests 1.5 s apart (UC1 copies take about 1-2 s): copies of consecutive requests overlap on the servers.
 OVERLAPPING_STEP_S = 1.5
-
-
-@pytest.fixture(scope="module")
-def uc1():
-    use_case = get_use_case(1)
-    scenario = load_scenario(ROOT / "topologies/paper_5servers.json", ROOT / "placements/paper_5servers.json")
-    return use_case, scenario, load_inputs(use_case)
 
 
 def _check_totals(world, policy: Policy, n_requests: int) -> tuple[int, int]:

@@ -14,9 +14,7 @@ import pytest
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import LANDED
 from yafs_safetail.edge.failures import DownIntervals, FailureSettings
-from yafs_safetail.edge.scenario import load_scenario
-from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import PHASE_STREAMS, build_world, load_inputs
+from yafs_safetail.edge.world import PHASE_STREAMS, build_world
 from yafs_safetail.methods.baselines import Oracle, RandX
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.runs.config import ExperimentConfig, ExperimentError
@@ -27,13 +25,6 @@ ROOT = Path(__file__).resolve().parents[1]
 STEP_S = 60.0
 #: A time-out longer than any UC1 copy's latency in these worlds.
 LONG_TIMEOUT_S = 30.0
-
-
-@pytest.fixture(scope="module")
-def uc1():
-    use_case = get_use_case(1)
-    scenario = load_scenario(ROOT / "topologies/paper_5servers.json", ROOT / "placements/paper_5servers.json")
-    return use_case, scenario, load_inputs(use_case)
 
 
 def _world(uc1, n_steps=120, seed=5, **keywords):
