@@ -51,12 +51,13 @@ from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
 from yafs_safetail.runs.budget import check_budget
 from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint
 from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
+from yafs_safetail.runs.figures_worker import FiguresWorker, start_figures_worker
 from yafs_safetail.runs.learners import check_learners, learner_names, make_learners
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.phases import LearnersJob, run_learners, run_other_methods
 from yafs_safetail.runs.provenance import run_metadata
 from yafs_safetail.runs.training import Checkpoints
-from yafs_safetail.runs.workers import MethodsJob, method_rng, start_workers
+from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, method_rng, start_workers
 from yafs_safetail.runs.world_recipe import TEST, TRAIN, world_recipe
 
 POLICY_FILE = "policy.keras"
@@ -230,34 +231,52 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
     )
     workers = start_workers(others, config.workers)  # forked before TensorFlow loads
     try:
-        with Phase(f"{prefix} {', '.join(learner_names(config))} setup (TensorFlow, the learners)",
-                   logger=log):
-            learners = make_learners(config, inputs, timings)
-        timings["setup"] = time.perf_counter() - started
-        learners_job = LearnersJob(
-            train_world=inputs.train_world, test_world=inputs.test_world,
-            step_interval_s=config.step_interval_s, episode_steps=inputs.learner_config.episode_steps,
-            prefix=prefix, yafs_dir=yafs_dir, bar=config.progress, chunk_steps=CHECKPOINT_CHUNK_STEPS)
-        learner_frames = run_learners(learners_job, learners, checkpoints, timings)
-        other_frames = run_other_methods(others, workers, timings)
-    finally:
+        figures_worker = start_figures_worker(config.workers) if config.figures else None  # likewise
+        return _learn_write_draw(staging, config, inputs, timings, started, checkpoints, others, workers,
+                                 figures_worker, yafs_dir)
+    finally:  # (stopping a process that has ended frees its pipe)
         for worker in workers:
             worker.stop()
+        if figures_worker is not None:
+            figures_worker.stop()
+
+
+def _learn_write_draw(staging: Path, config: ExperimentConfig, inputs: _Inputs, timings: dict[str, float],
+                      started: float, checkpoints: Checkpoints | None, others: MethodsJob,
+                      workers: list[MethodsWorker], figures_worker: FiguresWorker | None,
+                      yafs_dir: Path | None) -> pd.DataFrame:
+    """Steps 4 and 5: the learners, the other methods' rows, then the files and figures."""
+    prefix = f"UC{inputs.use_case.number}"
+    with Phase(f"{prefix} {', '.join(learner_names(config))} setup (TensorFlow, the learners)", logger=log):
+        learners = make_learners(config, inputs, timings)
+    timings["setup"] = time.perf_counter() - started
+    learners_job = LearnersJob(
+        train_world=inputs.train_world, test_world=inputs.test_world,
+        step_interval_s=config.step_interval_s, episode_steps=inputs.learner_config.episode_steps,
+        prefix=prefix, yafs_dir=yafs_dir, bar=config.progress, chunk_steps=CHECKPOINT_CHUNK_STEPS)
+    learner_frames = run_learners(learners_job, learners, checkpoints, timings)
+    other_frames = run_other_methods(others, workers, timings)
     requests = pd.concat([*learner_frames, *other_frames], ignore_index=True)
     run = run_metadata(config, inputs, learners,
                        sort_methods([*(policy.name for policy in learners), *others.method_names]))
     t0 = time.perf_counter()
+    if figures_worker is not None:  # drawn there while the files are written here
+        figures_worker.draw(staging, requests, run, config.figure_formats)
     with Phase(f"{prefix} writing results", logger=log):
         summary = results.write_results(staging, requests, run)
         for policy in learners:
             policy.save(staging / policy.policy_file())
     timings["writing"] = time.perf_counter() - t0
     if config.figures:
-        from yafs_safetail.figures import draw_figures
-
-        t0 = time.perf_counter()
+        t1 = time.perf_counter()
         with Phase(f"{prefix} figures", logger=log):
-            draw_figures(staging, requests, run, formats=config.figure_formats)
-        timings["plotting"] = time.perf_counter() - t0
+            if figures_worker is not None:
+                figures_worker.wait()
+            else:
+                from yafs_safetail.figures import draw_figures
+
+                draw_figures(staging, requests, run, formats=config.figure_formats)
+        # With a figures process, from handing it the rows: the drawing overlaps the writing.
+        timings["plotting"] = time.perf_counter() - (t0 if figures_worker is not None else t1)
     timings["total"] = time.perf_counter() - started
     return summary

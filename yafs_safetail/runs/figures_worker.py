@@ -1,0 +1,114 @@
+"""The run's figures, drawn in a process forked before TensorFlow loads while this one writes.
+
+Drawing the figures (matplotlib's import included) and writing the results files each take a
+few seconds at the end of a run; neither needs the other, so they run side by side. The process
+imports the figure module at once and then waits, so its import overlaps TensorFlow's and the
+simulations instead of the run's end. It draws exactly what :func:`~yafs_safetail.figures.
+draw_figures` draws in the main process (the same code on the same rows), and it never touches
+TensorFlow: it is forked before TensorFlow is imported, as the baseline workers are.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import signal
+from collections.abc import Sequence
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from yafs_safetail.runs.workers import WorkerDied, end_with_parent, how_it_ended
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from yafs_safetail.results import RunMetadata
+
+log = logging.getLogger(__name__)
+
+
+def _figures_main(channel: Connection) -> None:
+    # Stopped by SIGTERM (stop()); Ctrl-C is the parent's to handle (as runs.workers).
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    end_with_parent()
+    outcome: tuple[bool, object]
+    try:
+        from yafs_safetail.figures import draw_figures  # the import this process is here to pay
+
+        job = channel.recv()
+        if job is None:  # the run ended without figures to draw
+            return
+        folder, requests, run, formats = job
+        outcome = (True, draw_figures(folder, requests, run, formats=formats))
+    except EOFError:  # the parent closed the pipe: nothing to draw
+        return
+    except BaseException as error:  # every failure goes back to the parent
+        outcome = (False, error)
+    try:
+        channel.send(outcome)
+    except Exception as error:  # e.g. an exception that does not pickle
+        channel.send((False, RuntimeError(f"figures process: {type(error).__name__}: {error}")))
+    channel.close()
+
+
+class FiguresWorker:
+    """A forked process that draws one run's figures when given its rows."""
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("fork")
+        self._channel, child_end = context.Pipe(duplex=True)
+        self._process = context.Process(target=_figures_main, args=(child_end,), daemon=True,
+                                         name="yafs-safetail-figures")
+        self._process.start()
+        child_end.close()
+        self._sent = False
+        log.debug("figures process %s started", self._process.pid)
+
+    def draw(self, folder: Path, requests: pd.DataFrame, run: RunMetadata, formats: Sequence[str]) -> None:
+        """Start drawing ``folder``'s figures from the run's rows (returns at once)."""
+        self._channel.send((folder, requests, run, tuple(formats)))
+        self._sent = True
+
+    def wait(self) -> list[Path]:
+        """The written figure files, once drawn; re-raises the drawing's exception.
+
+        Raises:
+            WorkerDied: the process ended without a reply (killed).
+        """
+        try:
+            ok, payload = self._channel.recv()
+        except EOFError:
+            self._process.join()
+            raise WorkerDied(f"the figures process (pid {self._process.pid}) "
+                             f"{how_it_ended(self._process.exitcode)}; the run stopped") from None
+        self._process.join()
+        if not ok:
+            raise payload
+        return list(payload)
+
+    def stop(self) -> None:
+        """End the process if it still runs (the run failed before its figures) and free the pipe."""
+        if self._process.is_alive():
+            if not self._sent:
+                try:
+                    self._channel.send(None)  # the gentle way: it exits at once
+                except OSError:
+                    pass
+                self._process.join(timeout=5.0)
+            if self._process.is_alive():
+                self._process.terminate()
+                self._process.join()
+        self._channel.close()
+
+
+def start_figures_worker(workers: int) -> FiguresWorker | None:
+    """A figures process when the run may use more than one process (``--workers`` ≥ 2) and can
+    fork (not where ``fork`` does not exist, nor inside a daemonic process such as a
+    ``multiprocessing.Pool`` worker, which may not have children); else None: the main process
+    draws them after writing, as before."""
+    if (workers < 2 or "fork" not in multiprocessing.get_all_start_methods()
+            or multiprocessing.current_process().daemon):
+        return None
+    return FiguresWorker()
