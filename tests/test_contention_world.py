@@ -671,16 +671,17 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
 def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch):
     # Requests of one block still complete after the next block has started; their τ must not
     # rebuild their block's world (it did, back and forth, thousands of times).
-    import yafs_safetail.contention.world as world_module
+    # Every world the contention world draws goes through its parts' one draw method.
+    import yafs_safetail.edge.world_parts as parts_module
 
     built: list[str] = []
-    original = world_module.build_world
+    original = parts_module.build_world
 
     def counting(*args, **kwargs):
         built.append(kwargs["phase"])
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(world_module, "build_world", counting)
+    monkeypatch.setattr(parts_module, "build_world", counting)
     world = ContentionWorld(ContentionConfig(n_requests=3000, users=20, load=0.8, seed=1, queue=True,
                                              block_requests=1000))
     recorder = _TargetRecorder(5, np.random.default_rng(0))

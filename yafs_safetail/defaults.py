@@ -60,6 +60,10 @@ SAFETAIL_DISPATCH = ("all", "tied")
 #: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
 #: median scaled to the request's own input (docs/deviations.md D11).
 TARGET_COMPUTES = ("trace_median", "request")
+#: The world's settings (``edge.calibration.WorldSettings`` fields) a run may override: the
+#: experiment's options and the contention world's fields of these names, applied to the world
+#: by ``edge.world_parts.apply_world_overrides``.
+WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute")
 #: Simulated time between two requests: one load-trace row (one minute) per step.
 DEFAULT_STEP_INTERVAL_S = 60.0
 

@@ -5,7 +5,7 @@ What changes from the paper's single-user world (``edge.world``), and what does 
 * **Users.** U users send requests as Poisson streams (a rate per user, or an offered load that
   sets it) or at the times of an arrivals CSV (``time_s,user``). Every request draws its own
   size, Γ, signal conditions (Λ^u, Λ^d), per-server RTT and compute noise exactly as a step of
-  the single-user world does (``edge.world.build_world``, drawn in blocks of requests). Each
+  the single-user world does (the same parts, ``edge.world_parts``, drawn in blocks). Each
   user has its own distance condition to each server (``user_conditions``): the topology's
   (every user where the topology's user is), generated around it, or read from a JSON file;
   its RTTs, ρ^μ_i and τ follow from them.
@@ -57,19 +57,15 @@ from yafs_safetail.contention.config import (
 from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.failures import DownIntervals, effective_timeout_s, phase_down_intervals
-from yafs_safetail.edge.inputs import (
-    TraceInputs,
-    load_inputs,
-    load_scenario_for,
-    worst_case_copy_latency_s,
-)
+from yafs_safetail.edge.inputs import TraceInputs, worst_case_copy_latency_s
 from yafs_safetail.edge.latency import target_latency_s
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_sequence, propagation
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
-from yafs_safetail.edge.usecases import UseCase, get_use_case
-from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, build_world, phase_streams
+from yafs_safetail.edge.usecases import UseCase
+from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, phase_streams
+from yafs_safetail.edge.world_parts import WorldParts, read_world_parts
 
 __all__ = [
     "BACKGROUND_PERIOD_S", "ContentionWorld", "compute_speed_table",
@@ -101,32 +97,51 @@ def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, 
 
 class ContentionWorld:
     """The inputs of one contention run, drawn from ``(seed, phase)``; shared by every method
-    run on it (common random numbers: the same arrivals and per-request draws)."""
+    run on it (common random numbers: the same arrivals and per-request draws).
+
+    Its parts (``edge.world_parts``: the use case, traces, scenario and world settings) are read
+    as the experiment reads its own, and every request block and the background tenants are
+    drawn through :meth:`~yafs_safetail.edge.world_parts.WorldParts.draw`. ``inputs`` and
+    ``scenario``, read by an earlier world of the same files, are used instead of reading them
+    again (they depend on neither the seed nor the phase).
+    """
 
     def __init__(self, config: ContentionConfig, inputs: TraceInputs | None = None,
                  scenario: EdgeScenario | None = None) -> None:
         check_contention_config(config)
         self.config = config
-        self.use_case: UseCase = get_use_case(config.use_case)
-        if inputs is None:
-            inputs = (load_inputs(self.use_case) if config.traces_dir is None
-                      else load_inputs(self.use_case, config.traces_dir))
-        self.inputs = inputs
-        self.scenario = scenario or load_scenario_for(inputs, Path(config.topology), Path(config.placement))
-        self.settings: WorldSettings = world_settings(config.world)
+        self.parts: WorldParts = read_world_parts(
+            config.use_case, world_settings(config.world), config.topology, config.placement,
+            config.traces_dir, inputs=inputs, scenario=scenario)
         self.max_load = DEFAULT_MAX_LOAD
         self.capacity = self.scenario.server_capacity(self.max_load)
         self.speed_factor = tuple(ipt / REFERENCE_SERVER_IPT for ipt in self.scenario.server_ipt)
         self.server_max_load = np.asarray(self.capacity, dtype=np.int64)
         self.server_max_load.setflags(write=False)
         self.emit_s, self.user = self._arrivals()
-        self.conditions = user_conditions(config, self.scenario, tuple(sorted(inputs.rtt_pools_s)))
+        self.conditions = user_conditions(config, self.scenario, tuple(sorted(self.inputs.rtt_pools_s)))
         self._per_user = bool(np.any(self.conditions != np.asarray(self.scenario.server_conditions)))
         self._current: tuple[int, EdgeWorld] | None = None
         self._block_rtt_s: np.ndarray | None = None
         # τ per request, filled a block at a time as blocks are built: a request that completes
         # after the next block has started reads its τ here instead of rebuilding its block.
         self._target_s = np.full(len(self.emit_s), np.nan)
+
+    @property
+    def use_case(self) -> UseCase:
+        return self.parts.use_case
+
+    @property
+    def inputs(self) -> TraceInputs:
+        return self.parts.inputs
+
+    @property
+    def scenario(self) -> EdgeScenario:
+        return self.parts.scenario
+
+    @property
+    def settings(self) -> WorldSettings:
+        return self.parts.settings
 
     @property
     def n_servers(self) -> int:
@@ -241,8 +256,7 @@ class ContentionWorld:
 
     def _background_rows(self) -> tuple[tuple[int, ...], ...]:
         periods = int(self.emit_s[-1] // BACKGROUND_PERIOD_S) + 2 if self.n_requests else 1
-        world = build_world(self.scenario, self.use_case, self.inputs, periods, seed=self.config.seed,
-                            phase=f"{self.config.phase}:background", settings=self.settings)
+        world = self.parts.draw(periods, self.config.seed, f"{self.config.phase}:background")
         return tuple(tuple(row) for row in world.background_users.tolist())
 
     @cached_property
@@ -257,8 +271,7 @@ class ContentionWorld:
         size = self.config.block_requests
         n_steps = max(1, min(size, self.n_requests - index * size))
         phase = f"{self.config.phase}:{index}"
-        world = build_world(self.scenario, self.use_case, self.inputs, n_steps, seed=self.config.seed,
-                            phase=phase, settings=self.settings)
+        world = self.parts.draw(n_steps, self.config.seed, phase)
         self._current = (index, world)
         if self._per_user:
             users = self.user[index * size:index * size + n_steps]

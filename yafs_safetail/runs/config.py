@@ -45,6 +45,7 @@ from yafs_safetail.defaults import (
     OBJECTIVES,
     PRESET_NAMES,
     TARGET_COMPUTES,
+    WORLD_OVERRIDES,
 )
 from yafs_safetail.edge.published import USE_CASES
 
@@ -138,6 +139,8 @@ class WorldSetup:
     world: WorldSettings | None = setting(
         None, "the world settings; None: the preset's world (methods.safetail.presets.PRESET_WORLDS)",
         flag="", optional=True)
+    # The world's settings a run may override (defaults.WORLD_OVERRIDES names these three;
+    # edge.world_parts.apply_world_overrides applies them, as it does the contention world's).
     target_latency_s: float | None = setting(
         None, "a fixed target latency for every request, in seconds (default: Eq. 4's per-request "
         "heuristic, as in the paper)", check=POSITIVE_NUMBER, optional=True)
@@ -176,10 +179,6 @@ class WorldSetup:
     server_max_w: float | None = setting(
         None, "a server's power at its load limit, in watts (default: edge.energy's "
         "I7_11700_BASE_POWER_W, the paper's server CPU)", check=NON_NEGATIVE_NUMBER, optional=True)
-
-
-#: The world's own settings a run may override (WorldSettings fields of the same name).
-WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute")
 
 
 @dataclass(frozen=True)

@@ -14,16 +14,21 @@ from pathlib import Path
 from typing import Any
 
 from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
-from yafs_safetail.edge.calibration import CalibrationError, WorldSettings, world_settings
+from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings, read_down_file
-from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
+from yafs_safetail.edge.inputs import TraceInputs
 from yafs_safetail.edge.scenario import EdgeScenario
-from yafs_safetail.edge.usecases import UseCase, get_use_case
-from yafs_safetail.edge.world import EdgeWorld, build_world
+from yafs_safetail.edge.usecases import UseCase
+from yafs_safetail.edge.world import EdgeWorld
+from yafs_safetail.edge.world_parts import (
+    WorldOverrideError,
+    WorldParts,
+    apply_world_overrides,
+    read_world_parts,
+)
 from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, LearnerConfig, scaled_steps
 from yafs_safetail.runs.config import (
-    WORLD_OVERRIDES,
     ExperimentConfig,
     ExperimentError,
     check_config,
@@ -40,11 +45,11 @@ class WorldRecipe:
     """Everything a run's worlds are drawn from, read and checked once.
 
     Attributes:
-        use_case: the use case.
-        inputs: its traces and compute model.
-        scenario: the topology and placement, checked against the traces.
-        settings: the world's settings: the preset's world (or the configuration's own), with
-            the run's overrides applied.
+        parts: what every world is drawn from (``edge.world_parts``): the use case, its traces
+            and compute model, the topology and placement checked against the traces, and the
+            world's settings (the preset's world, or the configuration's own, with the run's
+            overrides applied); :attr:`use_case`, :attr:`inputs`, :attr:`scenario` and
+            :attr:`settings` read them.
         overrides: the overrides that changed the world (an option repeating the world's own
             value is left out), for ``run.json``.
         full_preset: the learner preset at full budget.
@@ -55,10 +60,7 @@ class WorldRecipe:
         step_interval_s: time between two requests (the outages are drawn over the phase).
     """
 
-    use_case: UseCase
-    inputs: TraceInputs
-    scenario: EdgeScenario
-    settings: WorldSettings
+    parts: WorldParts
     full_preset: LearnerConfig
     learner: LearnerConfig
     test_steps: int
@@ -67,16 +69,31 @@ class WorldRecipe:
     energy: EnergyModel = field(default_factory=EnergyModel)
     step_interval_s: float = DEFAULT_STEP_INTERVAL_S
 
+    @property
+    def use_case(self) -> UseCase:
+        return self.parts.use_case
+
+    @property
+    def inputs(self) -> TraceInputs:
+        return self.parts.inputs
+
+    @property
+    def scenario(self) -> EdgeScenario:
+        return self.parts.scenario
+
+    @property
+    def settings(self) -> WorldSettings:
+        return self.parts.settings
+
     def n_steps(self, phase: str) -> int:
         """The requests of ``phase`` (``"train"``: the learner's budget; else the test's)."""
         return self.learner.train_steps if phase == TRAIN else self.test_steps
 
     def make_world(self, phase: str, seed: int) -> EdgeWorld:
         """The world of ``phase`` drawn from ``seed`` (every method of the phase replays it)."""
-        return build_world(self.scenario, self.use_case, self.inputs, self.n_steps(phase), seed=seed,
-                           phase=phase, episode_steps=self.learner.episode_steps, settings=self.settings,
-                           failures=self.failures, energy=self.energy,
-                           step_interval_s=self.step_interval_s)
+        return self.parts.draw(self.n_steps(phase), seed, phase, episode_steps=self.learner.episode_steps,
+                               failures=self.failures, energy=self.energy,
+                               step_interval_s=self.step_interval_s)
 
 
 def failure_settings(config: ExperimentConfig, n_servers: int, style: str = "option") -> FailureSettings:
@@ -131,29 +148,19 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
         ValueError: a bad setting or input file (one line naming it).
     """
     check_config(config, style)
-    use_case = get_use_case(config.use_case)
     full, learner = learner_config(config)
-    inputs = load_inputs(use_case, config.traces_dir)
-    scenario = load_scenario_for(inputs, Path(config.topology), Path(config.placement))
-    settings = config.world or world_settings(PRESET_WORLDS[config.preset])
-    overrides: dict[str, Any] = {}
-    by_name = {item.name: item for item in dataclasses.fields(config)}
-    for name in WORLD_OVERRIDES:  # the run's own options over the world's
-        value = getattr(config, name)
-        if value is None:
-            continue
-        try:
-            changed = dataclasses.replace(settings, **{name: value})
-        except CalibrationError:
-            label = setting_of(by_name[name]).option(name) if style == "option" else name
-            raise ExperimentError(f"{label}: {value!r} is out of range") from None
-        if changed != settings:  # an option repeating the world's own value leaves it the preset's
-            overrides[name] = value
-        settings = changed
-    return WorldRecipe(use_case=use_case, inputs=inputs, scenario=scenario, settings=settings,
-                       full_preset=full, learner=learner,
+    preset_world = config.world or world_settings(PRESET_WORLDS[config.preset])
+    parts = read_world_parts(config.use_case, preset_world, config.topology, config.placement,
+                             config.traces_dir)
+    try:
+        settings, overrides = apply_world_overrides(parts.settings, config)
+    except WorldOverrideError as error:  # named as the run's option (or field)
+        by_name = {item.name: item for item in dataclasses.fields(config)}
+        label = setting_of(by_name[error.name]).option(error.name) if style == "option" else error.name
+        raise ExperimentError(f"{label}: {error.value!r} is out of range") from None
+    return WorldRecipe(parts=dataclasses.replace(parts, settings=settings), full_preset=full, learner=learner,
                        test_steps=scaled_steps(full.test_steps, config.steps_scale), overrides=overrides,
-                       failures=failure_settings(config, scenario.n_servers, style),
+                       failures=failure_settings(config, parts.scenario.n_servers, style),
                        energy=energy_model(config, style), step_interval_s=config.step_interval_s)
 
 

@@ -1,0 +1,50 @@
+"""What every world is drawn from (edge.world_parts): one draw, one way to apply overrides."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from yafs_safetail.edge.calibration import CALIBRATED_V1, LANDED
+from yafs_safetail.edge.world import build_world
+from yafs_safetail.edge.world_parts import (
+    WorldOverrideError,
+    WorldParts,
+    apply_world_overrides,
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Overrides:
+    target_latency_s: float | None = None
+    load_peak_users: float | None = None
+    target_compute: str | None = None
+
+
+def test_draw_is_build_world_with_the_parts_settings(uc1):
+    use_case, scenario, inputs = uc1
+    parts = WorldParts(use_case=use_case, inputs=inputs, scenario=scenario, settings=CALIBRATED_V1)
+    drawn = parts.draw(40, seed=3, phase="test:0")
+    built = build_world(scenario, use_case, inputs, 40, seed=3, phase="test:0", settings=CALIBRATED_V1)
+    assert drawn.settings == CALIBRATED_V1
+    for name in ("input_bytes", "rtt_s", "background_users", "target_s", "compute_by_processes_s"):
+        np.testing.assert_array_equal(getattr(drawn, name), getattr(built, name))
+
+
+def test_overrides_apply_and_only_changes_are_recorded():
+    settings, changed = apply_world_overrides(LANDED, _Overrides())
+    assert settings == LANDED and changed == {}
+    # load_peak_users 4 is the landed world's own value: applied, not recorded as a change.
+    settings, changed = apply_world_overrides(LANDED, _Overrides(target_latency_s=1.5, load_peak_users=4.0))
+    assert settings == dataclasses.replace(LANDED, target_latency_s=1.5)
+    assert changed == {"target_latency_s": 1.5}
+
+
+@pytest.mark.parametrize("name, value", [("target_latency_s", 0.0), ("load_peak_users", -1.0),
+                                         ("target_compute", "mean"), ("target_latency_s", "soon")])
+def test_a_refused_override_names_its_field(name, value):
+    with pytest.raises(WorldOverrideError, match=f"^{name}: ") as caught:
+        apply_world_overrides(LANDED, _Overrides(**{name: value}))
+    assert (caught.value.name, caught.value.value) == (name, value)
