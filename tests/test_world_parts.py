@@ -48,3 +48,31 @@ def test_a_refused_override_names_its_field(name, value):
     with pytest.raises(WorldOverrideError, match=f"^{name}: ") as caught:
         apply_world_overrides(LANDED, _Overrides(**{name: value}))
     assert (caught.value.name, caught.value.value) == (name, value)
+
+
+def test_the_contention_world_takes_the_experiments_world_overrides():
+    from yafs_safetail.contention.world import ContentionConfig, ContentionError, ContentionWorld
+
+    base = ContentionConfig(n_requests=30, users=3, load=0.3, block_requests=10)
+    overrides = {"target_latency_s": 1.5, "load_peak_users": 2.0, "target_compute": "trace_median"}
+    world = ContentionWorld(dataclasses.replace(base, **overrides))
+    assert world.settings == dataclasses.replace(CALIBRATED_V1, **overrides)
+    assert [world.target_s(r) for r in range(30)] == [1.5] * 30
+    plain = ContentionWorld(base, world.inputs, world.scenario)
+    assert plain.settings == CALIBRATED_V1
+    np.testing.assert_array_equal(plain.emit_s, world.emit_s)  # the arrivals do not move
+    with pytest.raises(ContentionError, match="^load_peak_users: -1.0 is out of range$"):
+        ContentionWorld(dataclasses.replace(base, load_peak_users=-1.0), world.inputs, world.scenario)
+
+
+def test_a_sweep_point_records_the_world_overrides_only_when_set():
+    from yafs_safetail.contention.config import ContentionConfig
+    from yafs_safetail.contention.sweep import SweepConfig, point_specs
+
+    plain = SweepConfig(base=ContentionConfig(users=10), loads=(0.5,))
+    assert not {"target_latency_s", "load_peak_users", "target_compute"} & set(plain.point_settings(0.5))
+    changed = SweepConfig(base=ContentionConfig(users=10, target_latency_s=2.0), loads=(0.5,))
+    settings = changed.point_settings(0.5)
+    assert settings["target_latency_s"] == 2.0
+    assert SweepConfig.from_point_settings(settings).base == changed.base
+    assert point_specs(plain)[0].run_id != point_specs(changed)[0].run_id

@@ -15,11 +15,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
+from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, WORLD_OVERRIDES
 from yafs_safetail.edge.energy import EnergyModel
 from yafs_safetail.edge.failure_settings import FailureSettings
 
@@ -83,6 +84,10 @@ class ContentionConfig:
         failures: when servers are down and how long a user waits for a reply (beyond the
             paper; the default: no server ever fails and no time-out, the paper's world).
         energy: the servers' and the devices' power models that price every copy.
+        target_latency_s, load_peak_users, target_compute: the run's overrides of the world's
+            settings, as the experiment's options of these names (``defaults.WORLD_OVERRIDES``,
+            applied by the same ``edge.world_parts.apply_world_overrides``); None keeps the
+            world's own.
     """
 
     use_case: int = 1
@@ -105,6 +110,18 @@ class ContentionConfig:
     user_conditions: str | Path = "topology"
     failures: FailureSettings = FailureSettings()
     energy: EnergyModel = EnergyModel()
+    target_latency_s: float | None = None
+    load_peak_users: float | None = None
+    target_compute: str | None = None
+
+    def world_overrides(self) -> dict[str, Any]:
+        """The overrides of the world's settings it sets (a sweep point's settings record only
+        these, so the run id of a point without any stays what it was before they existed)."""
+        return {name: getattr(self, name) for name in WORLD_OVERRIDES if getattr(self, name) is not None}
+
+    def with_world_overrides(self, settings: Mapping[str, Any]) -> ContentionConfig:
+        """This configuration with the world overrides a sweep point's ``settings`` record."""
+        return replace(self, **{name: settings[name] for name in WORLD_OVERRIDES if name in settings})
 
 
 def check_contention_config(config: ContentionConfig) -> None:

@@ -196,6 +196,10 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         traces_dir: the traces folder (None: the repository's).
         block_requests: requests drawn per block.
         user_conditions: ``"topology"``, ``"generated"`` or a JSON file.
+        failures: when servers are down and how long a user waits.
+        energy: the power models pricing every copy.
+        target_latency_s, load_peak_users, target_compute: overrides of the world's settings
+            (None: the world's own), as ``SafeTailEnv``'s and the experiment's.
         dispatch: ``"all"`` (every copy at once) or ``"tied"``.
         target: the τ of the records and rewards: ``"eq4"`` or ``"observed-load"``.
         reward: ``"paper"`` (Eq. 5), ``"no-free-miss"`` or ``"latency-cost"``.
@@ -231,6 +235,9 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         user_conditions: str | Path = _DEFAULTS.user_conditions,
         failures: FailureSettings = _DEFAULTS.failures,
         energy: EnergyModel = _DEFAULTS.energy,
+        target_latency_s: float | None = _DEFAULTS.target_latency_s,
+        load_peak_users: float | None = _DEFAULTS.load_peak_users,
+        target_compute: str | None = _DEFAULTS.target_compute,
         dispatch: str = "all",
         target: str = "eq4",
         reward: str = "paper",
@@ -253,7 +260,8 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
             queue=queue, cancel=cancel, background=background, links=links, world=world,
             topology=Path(topology), placement=Path(placement),
             traces_dir=None if traces_dir is None else Path(traces_dir), block_requests=block_requests,
-            user_conditions=user_conditions, failures=failures, energy=energy)
+            user_conditions=user_conditions, failures=failures, energy=energy,
+            target_latency_s=target_latency_s, load_peak_users=load_peak_users, target_compute=target_compute)
         check_contention_config(self.config)
         # The seed-0 world checks every setting and input file now, and its trace inputs and
         # scenario serve every later world (they do not depend on the seed).

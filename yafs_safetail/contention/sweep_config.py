@@ -276,6 +276,7 @@ class ContentionSweep:
             "preset": self.preset, "steps_scale": self.steps_scale, "reward": self.reward,
             "target": self.target, "learner": list(self.learners), "dispatch": self.dispatch,
             "test_requests": self.test_requests, "value_networks": self.n_value_networks,
+            **base.world_overrides(),
         }
 
     @staticmethod
@@ -287,7 +288,7 @@ class ContentionSweep:
             # Absent from the folders of earlier versions, whose links were read at the start.
             links=settings.get("links", "at-start"), world=settings["world"],
             topology=Path(settings["topology"]), placement=Path(settings["placement"]),
-            user_conditions=settings["user_conditions"])
+            user_conditions=settings["user_conditions"]).with_world_overrides(settings)
         # One learner's name in the folders of earlier versions, which trained one SafeTail.
         learners = settings["learner"]
         return dict(base=base, methods=tuple(settings["methods"]), safetail=settings["safetail"],

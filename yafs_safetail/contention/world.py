@@ -65,7 +65,12 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, phase_streams
-from yafs_safetail.edge.world_parts import WorldParts, read_world_parts
+from yafs_safetail.edge.world_parts import (
+    WorldOverrideError,
+    WorldParts,
+    apply_world_overrides,
+    read_world_parts,
+)
 
 __all__ = [
     "BACKGROUND_PERIOD_S", "ContentionWorld", "compute_speed_table",
@@ -101,7 +106,9 @@ class ContentionWorld:
 
     Its parts (``edge.world_parts``: the use case, traces, scenario and world settings) are read
     as the experiment reads its own, and every request block and the background tenants are
-    drawn through :meth:`~yafs_safetail.edge.world_parts.WorldParts.draw`. ``inputs`` and
+    drawn through :meth:`~yafs_safetail.edge.world_parts.WorldParts.draw`; the configuration's
+    ``target_latency_s``, ``load_peak_users`` and ``target_compute`` override the named world's
+    settings as the experiment's options do. ``inputs`` and
     ``scenario``, read by an earlier world of the same files, are used instead of reading them
     again (they depend on neither the seed nor the phase).
     """
@@ -110,8 +117,12 @@ class ContentionWorld:
                  scenario: EdgeScenario | None = None) -> None:
         check_contention_config(config)
         self.config = config
+        try:  # the named world with the run's overrides, as the experiment applies its own
+            settings, _ = apply_world_overrides(world_settings(config.world), config)
+        except WorldOverrideError as error:
+            raise ContentionError(str(error)) from None
         self.parts: WorldParts = read_world_parts(
-            config.use_case, world_settings(config.world), config.topology, config.placement,
+            config.use_case, settings, config.topology, config.placement,
             config.traces_dir, inputs=inputs, scenario=scenario)
         self.max_load = DEFAULT_MAX_LOAD
         self.capacity = self.scenario.server_capacity(self.max_load)
