@@ -7,8 +7,8 @@ import math
 
 from yafs_safetail.contention.engine import (
     EngineSettings,
+    FirstReply,
     RequestBlock,
-    RequestOutcome,
     ServerSpec,
     run_engine,
 )
@@ -24,7 +24,7 @@ class Fixed:
 
     def __init__(self, plan, mode="all", delay_s=math.inf):
         self.plan, self.mode, self.delay_s = plan, mode, delay_s
-        self.outcomes: dict[int, RequestOutcome] = {}
+        self.outcomes: dict[int, FirstReply] = {}
 
     def choose(self, request, active_users):
         return self.plan[request]
@@ -32,8 +32,8 @@ class Fixed:
     def hedge_delay_s(self):
         return self.delay_s
 
-    def completed(self, outcome):
-        self.outcomes[outcome.request] = outcome
+    def completed(self, reply):
+        self.outcomes[reply.request] = reply
 
 
 def run_hand_made(work, emit, plan, *, outages=(), slots, speed, rtt, input_s=0.0, output_s=0.0,

@@ -10,8 +10,8 @@ import pytest
 from yafs_safetail.contention.engine import (
     EngineError,
     EngineSettings,
+    FirstReply,
     RequestBlock,
-    RequestOutcome,
     ServerSpec,
     run_engine,
 )
@@ -25,7 +25,7 @@ class Fixed:
 
     def __init__(self, plan, mode="all", delay_s=math.inf):
         self.plan, self.mode, self.delay_s = plan, mode, delay_s
-        self.outcomes: list[RequestOutcome] = []
+        self.outcomes: list[FirstReply] = []
 
     def choose(self, request, active_users):
         return self.plan[request]
@@ -33,8 +33,8 @@ class Fixed:
     def hedge_delay_s(self):
         return self.delay_s
 
-    def completed(self, outcome):
-        self.outcomes.append(outcome)
+    def completed(self, reply):
+        self.outcomes.append(reply)
 
 
 def engine(work, emit, plan, *, slots=1, speed=(1.0, 1.0, 0.5, 1 / 3), queue=False, cancel=True,

@@ -71,8 +71,8 @@ class RecordingPairs:
     def hedge_delay_s(self):
         return float("inf")
 
-    def completed(self, outcome):
-        self.outcomes.append(outcome)
+    def completed(self, reply):
+        self.outcomes.append(reply)
 
 
 def test_shared_links_keep_each_transfer_between_its_fastest_and_slowest_level():

@@ -42,13 +42,13 @@ from yafs_safetail.contention.types import (
     EngineError,
     EngineResult,
     EngineSettings,
+    FirstReply,
     RequestBlock,
-    RequestOutcome,
     ServerSpec,
 )
 
 __all__ = ["DISPATCH_MODES", "Dispatcher", "EngineError", "EngineResult", "EngineSettings",
-           "RequestBlock", "RequestOutcome", "ServerSpec", "run_engine"]
+           "FirstReply", "RequestBlock", "ServerSpec", "run_engine"]
 
 
 def run_engine(

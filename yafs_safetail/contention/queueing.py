@@ -20,8 +20,8 @@ import numpy as np
 from yafs_safetail.contention.engine import (
     EngineResult,
     EngineSettings,
+    FirstReply,
     RequestBlock,
-    RequestOutcome,
     ServerSpec,
     run_engine,
 )
@@ -60,7 +60,7 @@ class _RandomSingle:
     def hedge_delay_s(self) -> float:
         raise NotImplementedError
 
-    def completed(self, outcome: RequestOutcome) -> None:
+    def completed(self, reply: FirstReply) -> None:
         raise NotImplementedError
 
 
@@ -77,7 +77,7 @@ class _SendToAll:
     def hedge_delay_s(self) -> float:
         raise NotImplementedError
 
-    def completed(self, outcome: RequestOutcome) -> None:
+    def completed(self, reply: FirstReply) -> None:
         raise NotImplementedError
 
 

@@ -18,7 +18,7 @@ import numpy as np
 # Declared in contention.config, which the sweep commands' options import before NumPy loads.
 from yafs_safetail.contention.config import SUMMARY_COLUMNS as SUMMARY_COLUMNS
 from yafs_safetail.contention.config import TARGETS as TARGETS
-from yafs_safetail.contention.engine import DISPATCH_MODES, EngineResult, RequestOutcome, run_engine
+from yafs_safetail.contention.engine import DISPATCH_MODES, EngineResult, FirstReply, run_engine
 from yafs_safetail.contention.types import (
     END_ALL_LOST_CODE,
     END_ALL_REFUSED_CODE,
@@ -78,30 +78,30 @@ class PolicyDispatcher:
         assert self._hedging is not None  # check_dispatch: a hedging policy has it
         return self._hedging.hedge_delay_s()
 
-    def completed(self, outcome: RequestOutcome) -> None:
-        transfer_s = outcome.input_transfer_s + outcome.output_transfer_s
+    def completed(self, reply: FirstReply) -> None:
+        transfer_s = reply.input_transfer_s + reply.output_transfer_s
         record = RequestRecord(
             method=self.policy.name,
-            step=outcome.request,
-            request_id=outcome.request,
-            time_emit_s=outcome.emit_s,
-            latency_s=outcome.latency_s,
-            target_s=self.world.target_s(outcome.request) if self._observed_target_s is None
-            else self._observed_target_s.pop(outcome.request),
-            servers=tuple(sorted(outcome.servers)),
+            step=reply.request,
+            request_id=reply.request,
+            time_emit_s=reply.emit_s,
+            latency_s=reply.latency_s,
+            target_s=self.world.target_s(reply.request) if self._observed_target_s is None
+            else self._observed_target_s.pop(reply.request),
+            servers=tuple(sorted(reply.servers)),
             n_servers=self._n,
-            refused=outcome.refused,
-            fallback=outcome.fallback,
-            winner=outcome.winner,
+            refused=reply.refused,
+            fallback=reply.fallback,
+            winner=reply.winner,
             upload_s=transfer_s,
-            propagation_s=2.0 * outcome.propagation_s,
+            propagation_s=2.0 * reply.propagation_s,
             download_s=transfer_s,
-            compute_s=outcome.server_s,
-            lost=outcome.lost,
-            end_reason=outcome.end_reason,
-            server_energy_j=outcome.server_energy_j,
-            radio_energy_j=outcome.radio_energy_j,
-            saved_energy_j=outcome.saved_energy_j,
+            compute_s=reply.server_s,
+            lost=reply.lost,
+            end_reason=reply.end_reason,
+            server_energy_j=reply.server_energy_j,
+            radio_energy_j=reply.radio_energy_j,
+            saved_energy_j=reply.saved_energy_j,
         )
         self.policy.feedback(record)
 

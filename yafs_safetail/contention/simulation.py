@@ -30,7 +30,7 @@ from yafs_safetail.contention.state import (
     Copy,
     Request,
     Server,
-    outcome,
+    first_reply,
 )
 from yafs_safetail.contention.types import (
     END_ALL_REFUSED_CODE,
@@ -238,8 +238,8 @@ class Simulation(FailureHandling, SharedCapacity):
             result.winner[j] = copy.server.index
         if not self.wants_outcomes:
             return
-        self.dispatcher.completed(outcome(request, latency_s, copy, END_REASONS[reason],
-                                          self.energy_so_far(request)))
+        self.dispatcher.completed(first_reply(request, latency_s, copy, END_REASONS[reason],
+                                              self.energy_so_far(request)))
 
     # --- servers --------------------------------------------------------------------------------
 

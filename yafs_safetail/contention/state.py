@@ -13,7 +13,7 @@ from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass, field
 
-from yafs_safetail.contention.types import RequestBlock, RequestOutcome
+from yafs_safetail.contention.types import FirstReply, RequestBlock
 
 # A copy's states, in the order a copy moves through them; everything up to RUNNING can still
 # hold or take a slot, so ``state <= RUNNING`` reads "not past computing".
@@ -233,16 +233,16 @@ class Transfer:
         return min(1.0, max(0.0, 1.0 - left))
 
 
-def outcome(request: Request, latency_s: float, copy: Copy | None, end_reason: str,
-            energy_j: tuple[float, float, float]) -> RequestOutcome:
+def first_reply(request: Request, latency_s: float, copy: Copy | None, end_reason: str,
+                energy_j: tuple[float, float, float]) -> FirstReply:
     """How ``request`` ended: with ``copy``'s reply after ``latency_s``, or (None) the fallback,
     for ``end_reason``; ``energy_j``: its servers', radio and saved energy until now."""
     sent = tuple(c.server.index for c in request.copies)
     server_j, radio_j, saved_j = energy_j
     if copy is None:
-        return RequestOutcome(request.index, request.emit_s, latency_s, sent, request.refused, True, -1,
-                              math.nan, math.nan, math.nan, math.nan, end_reason, request.lost,
-                              server_j, radio_j, saved_j)
-    return RequestOutcome(request.index, request.emit_s, latency_s, sent, request.refused, False,
-                          copy.server.index, copy.input_s, copy.output_s, copy.propagation_s,
-                          copy.end_s - copy.arrive_s, end_reason, request.lost, server_j, radio_j, saved_j)
+        return FirstReply(request.index, request.emit_s, latency_s, sent, request.refused, True, -1,
+                          math.nan, math.nan, math.nan, math.nan, end_reason, request.lost,
+                          server_j, radio_j, saved_j)
+    return FirstReply(request.index, request.emit_s, latency_s, sent, request.refused, False,
+                      copy.server.index, copy.input_s, copy.output_s, copy.propagation_s,
+                      copy.end_s - copy.arrive_s, end_reason, request.lost, server_j, radio_j, saved_j)

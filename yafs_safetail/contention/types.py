@@ -1,5 +1,6 @@
 """What the contention engine takes and gives: servers, request blocks, the dispatcher it asks,
-and per-request outcomes (``contention.engine`` runs them)."""
+each request's first reply (:class:`FirstReply`) and the run's results (``contention.engine``
+runs them)."""
 
 from __future__ import annotations
 
@@ -50,19 +51,19 @@ class Dispatcher(Protocol):
         """For ``"hedge"``: how long to wait for a reply before sending the next copy."""
         ...
 
-    def completed(self, outcome: RequestOutcome) -> None:
-        """Request ``outcome.request`` has its first reply (or fell back to the device)."""
+    def completed(self, reply: FirstReply) -> None:
+        """Request ``reply.request`` has its first reply (or fell back to the device)."""
         ...
 
 
 @dataclass(frozen=True, slots=True)
-class RequestOutcome:
+class FirstReply:
     """How one request ended, at its first reply (or fallback): what the engine tells the
-    dispatcher, which turns it into the policy's :class:`~yafs_safetail.record.RequestRecord`
-    (the request outcome every world gives a policy).
+    dispatcher (:meth:`Dispatcher.completed`), which turns it into the policy's
+    :class:`~yafs_safetail.record.RequestRecord` (the request record every world gives a policy).
 
-    Not the core's ``yafs.outcomes.RequestOutcome``, though both describe a request and its first
-    reply: the core's is built once every copy has settled (each copy's status, YAFS process and
+    Not the core's ``yafs.outcomes.RequestOutcome`` (hence a name of its own), though both
+    describe a request and its first reply: the core's is built once every copy has settled (each copy's status, YAFS process and
     node; refusals counted over all copies) and holds no Eq. 1 parts, while this one comes at the
     first reply, when the policy's feedback is due, with the winning copy's Eq. 1 parts. Built
     from the core's type, it would have to wait for the slowest copy, which moves every
@@ -212,7 +213,7 @@ class EngineResult:
     """Per-request results in emission order (arrays of length n_requests).
 
     Attributes:
-        emit_s, latency_s, n_copies, refused, fallback, winner: as in :class:`RequestOutcome`.
+        emit_s, latency_s, n_copies, refused, fallback, winner: as in :class:`FirstReply`.
         busy_s: total server time copies spent running, over the run (work that counted or not).
         cancelled_copies: copies cancelled before they finished (computing, or sending their
             reply on a shared up link).
