@@ -147,3 +147,14 @@ def test_target_headroom_benchmark_small_budget():
     # UC3's bound is facts.md's "Oracle faster by 1.50x at the median", read by the script.
     assert "p50>=1.50" in verdicts[2] and "p90>=1.14" in verdicts[2]
     assert all(line.rsplit("reachable=", 1)[1] in ("yes", "no") for line in verdicts)
+
+
+def test_training_round_benchmark_small_budget():
+    done = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "bench_training_round.py"), "--rounds", "2"],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    figures = dict(part.split("=") for line in done.stdout.splitlines() for part in line.split())
+    assert set(figures) == {"first_round_s", "first_round_xla_s", "round_ms", "round_xla_ms", "same_weights"}
+    assert all(float(figures[name]) > 0 for name in figures if name != "same_weights")
+    assert figures["same_weights"] in ("yes", "no")

@@ -123,7 +123,7 @@ def masked_squared_error() -> Any:
     return loss
 
 
-def make_round_updates(model: Any, objective: str = "target-vector") -> Any:
+def make_round_updates(model: Any, objective: str = "target-vector", jit_compile: bool = False) -> Any:
     """A function running a whole training round of minibatch Adam updates in one TensorFlow
     graph call.
 
@@ -132,7 +132,9 @@ def make_round_updates(model: Any, objective: str = "target-vector") -> Any:
     the objective's loss (the one :func:`build_network` compiles) and the model's optimizer,
     and returns the mean loss. One graph call per round instead of one Keras call per
     minibatch: Keras's per-call overhead (milliseconds) is many times the arithmetic of this
-    small network.
+    small network. ``jit_compile=True`` compiles the round with XLA: about a third faster, but
+    the trained weights differ in their last bits, and so would every results file
+    (``benchmarks/bench_training_round.py``); runs never use it.
     """
     import keras
     import tensorflow as tf
@@ -146,7 +148,7 @@ def make_round_updates(model: Any, objective: str = "target-vector") -> Any:
     optimizer = model.optimizer
     variables = model.trainable_variables
 
-    @tf.function(reduce_retracing=True)
+    @tf.function(reduce_retracing=True, jit_compile=jit_compile)
     def run(states, targets, batches):
         total = tf.constant(0.0)
         n_updates = tf.shape(batches)[0]
