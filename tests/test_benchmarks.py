@@ -26,6 +26,7 @@ def test_benchmark_answers_help(script):
     assert "usage:" in done.stdout
 
 
+@pytest.mark.slow  # about 50 s: reproduce_all's own small run and the scorecard's tests cover its parts
 def test_fidelity_benchmark_small_budget(tmp_path):
     done = subprocess.run(
         [sys.executable, str(REPOSITORY / "benchmarks" / "bench_fidelity.py"), "--seeds", "0",
@@ -149,6 +150,7 @@ def test_target_headroom_benchmark_small_budget():
     assert all(line.rsplit("reachable=", 1)[1] in ("yes", "no") for line in verdicts)
 
 
+@pytest.mark.slow  # two TensorFlow processes; its network code is the runs' own, tested there
 def test_training_round_benchmark_small_budget():
     done = subprocess.run(
         [sys.executable, str(REPOSITORY / "benchmarks" / "bench_training_round.py"), "--rounds", "2"],
