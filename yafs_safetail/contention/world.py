@@ -55,7 +55,7 @@ from yafs_safetail.contention.config import (
     user_conditions,
 )
 from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
-from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.edge.failures import DownIntervals, effective_timeout_s, phase_down_intervals
 from yafs_safetail.edge.inputs import TraceInputs, worst_case_copy_latency_s
 from yafs_safetail.edge.latency import target_latency_s
@@ -63,9 +63,9 @@ from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_sequence, propagation
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
-from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, phase_streams
 from yafs_safetail.edge.world_parts import (
+    OnWorldParts,
     WorldOverrideError,
     WorldParts,
     apply_world_overrides,
@@ -100,7 +100,7 @@ def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, 
     return tuple(speeds)
 
 
-class ContentionWorld:
+class ContentionWorld(OnWorldParts):
     """The inputs of one contention run, drawn from ``(seed, phase)``; shared by every method
     run on it (common random numbers: the same arrivals and per-request draws).
 
@@ -137,22 +137,6 @@ class ContentionWorld:
         # τ per request, filled a block at a time as blocks are built: a request that completes
         # after the next block has started reads its τ here instead of rebuilding its block.
         self._target_s = np.full(len(self.emit_s), np.nan)
-
-    @property
-    def use_case(self) -> UseCase:
-        return self.parts.use_case
-
-    @property
-    def inputs(self) -> TraceInputs:
-        return self.parts.inputs
-
-    @property
-    def scenario(self) -> EdgeScenario:
-        return self.parts.scenario
-
-    @property
-    def settings(self) -> WorldSettings:
-        return self.parts.settings
 
     @property
     def n_servers(self) -> int:

@@ -24,7 +24,7 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, DEFAULT_MAX_LOAD, EdgeWorld, build_world
 
-__all__ = ["WORLD_OVERRIDES", "WorldOverrideError", "WorldOverrides", "WorldParts",
+__all__ = ["WORLD_OVERRIDES", "OnWorldParts", "WorldOverrideError", "WorldOverrides", "WorldParts",
            "apply_world_overrides", "read_world_parts"]
 
 
@@ -53,6 +53,28 @@ class WorldParts:
         return build_world(self.scenario, self.use_case, self.inputs, n_steps, seed=seed, phase=phase,
                            episode_steps=episode_steps, max_load=max_load, settings=self.settings,
                            failures=failures, energy=energy, step_interval_s=step_interval_s)
+
+
+class OnWorldParts:
+    """The parts' four members read through an object built on them (``parts``)."""
+
+    parts: WorldParts
+
+    @property
+    def use_case(self) -> UseCase:
+        return self.parts.use_case
+
+    @property
+    def inputs(self) -> TraceInputs:
+        return self.parts.inputs
+
+    @property
+    def scenario(self) -> EdgeScenario:
+        return self.parts.scenario
+
+    @property
+    def settings(self) -> WorldSettings:
+        return self.parts.settings
 
 
 def read_world_parts(use_case: int, settings: WorldSettings, topology: Path | str, placement: Path | str,

@@ -10,15 +10,15 @@ TensorFlow: it is forked before TensorFlow is imported, as the baseline workers 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
-import signal
 from collections.abc import Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from yafs_safetail.runs.workers import WorkerDied, end_with_parent, how_it_ended
+from yafs_safetail.runs.workers import WorkerDied, become_worker, how_it_ended, send_outcome
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -29,28 +29,23 @@ log = logging.getLogger(__name__)
 
 
 def _figures_main(channel: Connection) -> None:
-    # Stopped by SIGTERM (stop()); Ctrl-C is the parent's to handle (as runs.workers).
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    end_with_parent()
-    outcome: tuple[bool, object]
+    become_worker()
+    with contextlib.suppress(Exception):  # the import this process is here to pay, while the run computes
+        import yafs_safetail.figures  # noqa: F401
     try:
-        from yafs_safetail.figures import draw_figures  # the import this process is here to pay
-
         job = channel.recv()
-        if job is None:  # the run ended without figures to draw
-            return
-        folder, requests, run, formats = job
-        outcome = (True, draw_figures(folder, requests, run, formats=formats))
     except EOFError:  # the parent closed the pipe: nothing to draw
         return
-    except BaseException as error:  # every failure goes back to the parent
-        outcome = (False, error)
-    try:
-        channel.send(outcome)
-    except Exception as error:  # e.g. an exception that does not pickle
-        channel.send((False, RuntimeError(f"figures process: {type(error).__name__}: {error}")))
-    channel.close()
+    if job is None:  # the run ended without figures to draw
+        return
+    folder, requests, run, formats = job
+
+    def draw() -> list[Path]:
+        from yafs_safetail.figures import draw_figures
+
+        return draw_figures(folder, requests, run, formats=formats)
+
+    send_outcome(channel, draw, "figures process")
 
 
 class FiguresWorker:

@@ -17,6 +17,7 @@ import signal
 import sys
 import time
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -127,22 +128,33 @@ class WorkerDied(ChildProcessError):
     out-of-memory killer's SIGKILL): one line naming it and the signal."""
 
 
-def _worker_main(job: MethodsJob, sender: Connection) -> None:
-    # A worker is stopped by SIGTERM (worker.stop()); it must die at once, not unwind the
-    # parent's handlers it inherited through fork.
+def become_worker() -> None:
+    """What a forked process does first: it is stopped by SIGTERM (``stop()``) and must die at
+    once, not unwind the parent's handlers it inherited through fork; Ctrl-C is the parent's to
+    handle; and it ends with its parent."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     end_with_parent()
+
+
+def send_outcome(sender: Connection, work: Callable[[], object], worker_name: str) -> None:
+    """Do ``work`` and send the parent ``(True, result)``, or ``(False, exception)`` for any
+    failure (one that does not pickle becomes a RuntimeError naming ``worker_name``)."""
     outcome: tuple[bool, object]
     try:
-        outcome = (True, job.run())
+        outcome = (True, work())
     except BaseException as error:  # every failure goes back to the parent
         outcome = (False, error)
     try:
         sender.send(outcome)
     except Exception as error:  # e.g. an exception that does not pickle
-        sender.send((False, RuntimeError(f"baseline worker: {type(error).__name__}: {error}")))
+        sender.send((False, RuntimeError(f"{worker_name}: {type(error).__name__}: {error}")))
     sender.close()
+
+
+def _worker_main(job: MethodsJob, sender: Connection) -> None:
+    become_worker()
+    send_outcome(sender, job.run, "baseline worker")
 
 
 class MethodsWorker:

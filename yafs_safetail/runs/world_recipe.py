@@ -14,14 +14,12 @@ from pathlib import Path
 from typing import Any
 
 from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
-from yafs_safetail.edge.calibration import WorldSettings, world_settings
+from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings, read_down_file
-from yafs_safetail.edge.inputs import TraceInputs
-from yafs_safetail.edge.scenario import EdgeScenario
-from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.edge.world_parts import (
+    OnWorldParts,
     WorldOverrideError,
     WorldParts,
     apply_world_overrides,
@@ -41,7 +39,7 @@ TRAIN, TEST = "train", "test"
 
 
 @dataclass(frozen=True)
-class WorldRecipe:
+class WorldRecipe(OnWorldParts):
     """Everything a run's worlds are drawn from, read and checked once.
 
     Attributes:
@@ -68,22 +66,6 @@ class WorldRecipe:
     failures: FailureSettings = field(default_factory=FailureSettings)
     energy: EnergyModel = field(default_factory=EnergyModel)
     step_interval_s: float = DEFAULT_STEP_INTERVAL_S
-
-    @property
-    def use_case(self) -> UseCase:
-        return self.parts.use_case
-
-    @property
-    def inputs(self) -> TraceInputs:
-        return self.parts.inputs
-
-    @property
-    def scenario(self) -> EdgeScenario:
-        return self.parts.scenario
-
-    @property
-    def settings(self) -> WorldSettings:
-        return self.parts.settings
 
     def n_steps(self, phase: str) -> int:
         """The requests of ``phase`` (``"train"``: the learner's budget; else the test's)."""
