@@ -18,6 +18,8 @@ from yafs_safetail.methods.baselines import Oracle, RandX
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.safetail import StateScales, reward, state_dim
 from yafs_safetail.methods.safetail.reward import priced_reward
+from yafs_safetail.sim import runner
+from yafs_safetail.sim.hooks import EdgeModel
 from yafs_safetail.sim.runner import deploy
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,26 +27,75 @@ ROOT = Path(__file__).resolve().parents[1]
 OVERLAPPING_STEP_S = 1.5
 
 
+class _AccountedEdgeModel(EdgeModel):
+    """The edge model with totals kept apart from its per-copy accounting (``request_fates``):
+    per server, the integral over time of the copies holding a process (from the core's admit
+    and release calls); the device's radio per transfer (from the user's hops). Also sums the
+    copies' server energies per server as ``request_fates`` reads them."""
+
+    def __init__(self, world) -> None:
+        super().__init__(world)
+        self.running = [0] * self.n_servers
+        self.process_seconds = [0.0] * self.n_servers
+        self.last_change_s = [0.0] * self.n_servers
+        self.device_radio_energy_j = 0.0
+        self.copies_server_energy_j = np.zeros(self.n_servers)
+
+    def _processes_change(self, server: int, now_s: float, change: int) -> None:
+        self.process_seconds[server] += self.running[server] * (now_s - self.last_change_s[server])
+        self.last_change_s[server] = now_s
+        self.running[server] += change
+
+    def server_energy_totals_j(self, now_s: float) -> list[float]:
+        """Each server's marginal energy of our copies up to ``now_s``, from the integral."""
+        per_process_w = self.world.energy.server.per_process_w
+        return [per_process_w * (seconds + running * (now_s - last_s))
+                for seconds, running, last_s in zip(self.process_seconds, self.running,
+                                                    self.last_change_s, strict=True)]
+
+    def hop_delay_s(self, sim, message, src_node, dst_node):
+        delay = super().hop_delay_s(sim, message, src_node, dst_node)
+        if self.user_node in (src_node, dst_node):
+            step = self.begin_request(message.id)
+            state = self._copies[message.id][self.server_index(message.copy_dst_node)]
+            radio = self.world.energy.radio
+            self.device_radio_energy_j += (
+                radio.upload_energy_j(float(self.world.input_bytes[step]), state.input_s)
+                if src_node == self.user_node
+                else radio.download_energy_j(float(self.world.output_bytes[step]), state.output_s))
+        return delay
+
+    def admit(self, sim, message, des, node, module):
+        admitted = super().admit(sim, message, des, node, module)
+        if admitted:
+            self._processes_change(self.server_index(node), sim.env.now, +1)
+        return admitted
+
+    def release(self, sim, message, des, node, module):
+        super().release(sim, message, des, node, module)
+        self._processes_change(self.server_index(node), sim.env.now, -1)
+
+    def request_fates(self, request_id):
+        per_process_w = self.world.energy.server.per_process_w
+        for state in self._copies.get(request_id, ()):
+            if state is not None:
+                self.copies_server_energy_j[state.server] += per_process_w * state.served_s
+        return super().request_fates(request_id)
+
+
 def _check_totals(world, policy: Policy, n_requests: int) -> tuple[int, int]:
     """Run ``policy`` request by request; at every moment with no copy running, the per-copy
-    energies summed per server and for the device equal the totals the model kept apart.
-    Checked again once the last request's copies have all ended. Returns (moments checked
-    before the end, requests whose copies overlapped an earlier request's)."""
+    energies summed per server and for the device equal the totals kept apart
+    (:class:`_AccountedEdgeModel`). Checked again once the last request's copies have all ended.
+    Returns (moments checked before the end, requests whose copies overlapped an earlier
+    request's)."""
     simulation = deploy(world, policy, OVERLAPPING_STEP_S)
     edge = simulation.edge
-    fates = {}
-    measure = edge.request_fates
+    assert isinstance(edge, _AccountedEdgeModel)
 
-    def keep(request_id):
-        fates[request_id] = measure(request_id)
-        return fates[request_id]
-
-    edge.request_fates = keep  # type: ignore[method-assign]
     def check() -> None:
         now_s = simulation.sim.env.now
-        per_server = np.zeros(world.n_servers)
-        for fate in fates.values():
-            per_server += fate.server_energy_by_server_j
+        per_server = edge.copies_server_energy_j
         totals = edge.server_energy_totals_j(now_s)
         assert np.allclose(per_server, totals, rtol=0, atol=1e-9), (per_server, totals)
         records = simulation.records
@@ -69,7 +120,8 @@ def _check_totals(world, policy: Policy, n_requests: int) -> tuple[int, int]:
 
 
 @pytest.mark.parametrize("failures", [None, FailureSettings(mttf_s=6.0, mttr_s=3.0)])
-def test_the_copies_energy_adds_up_to_each_servers_and_the_devices_totals(uc1, failures):
+def test_the_copies_energy_adds_up_to_each_servers_and_the_devices_totals(uc1, failures, monkeypatch):
+    monkeypatch.setattr(runner, "EdgeModel", _AccountedEdgeModel)
     use_case, scenario, inputs = uc1
     energy = EnergyModel(server=ServerPowerModel(idle_w=12.5, max_w=80.0))
     world = build_world(scenario, use_case, inputs, 300, seed=4, phase="test", failures=failures,

@@ -26,11 +26,11 @@ wait for each other (Eq. 1 has no waiting term; assumption ii).
 Failures and energy (docs/failures_energy.md): with the world's ``down_intervals`` a copy whose
 server is down when it arrives is lost at once (the core sees a refusal, the record counts it as
 lost), and one whose server goes down before its compute ends holds its process until then and
-sends no reply (its reply finds no route: the core's ``"lost"``). Every copy's energy is kept
-here: its server's marginal power over the time it computed, the device's radio for its upload
-and for the download of every reply that reached the user. Two totals are accumulated apart
-(each server's integral of our running processes over time, the device's radio per transfer),
-against which the per-copy sums are tested.
+sends no reply (its reply finds no route: the core's ``"lost"``). Every copy's energy is
+counted once, when its request ends (:meth:`EdgeModel.request_fates`): its server's marginal
+power over the time it computed, the device's radio for its upload and for the download of
+every reply that reached the user. (tests/test_energy_edge.py checks these sums against
+totals kept apart by an instrumented subclass, not here, off the per-copy path.)
 
 Request -> step: the n-th request the user emits is step n of the world (its request, trace
 row and draws), whichever selection routes it; with the default one request per
@@ -115,19 +115,16 @@ class CopyFates:
         server_energy_j: the servers' marginal energy of every copy (per process power x the
             time it computed).
         radio_energy_j: the device's radio: every copy's upload, every received reply's download.
-        server_energy_by_server_j: ``server_energy_j`` split by server index.
     """
 
-    __slots__ = ("lost", "lost_on_arrival", "server_energy_j", "radio_energy_j",
-                 "server_energy_by_server_j")
+    __slots__ = ("lost", "lost_on_arrival", "server_energy_j", "radio_energy_j")
 
     def __init__(self, lost: int, lost_on_arrival: int, server_energy_j: float,
-                 radio_energy_j: float, server_energy_by_server_j: list[float]) -> None:
+                 radio_energy_j: float) -> None:
         self.lost = lost
         self.lost_on_arrival = lost_on_arrival
         self.server_energy_j = server_energy_j
         self.radio_energy_j = radio_energy_j
-        self.server_energy_by_server_j = server_energy_by_server_j
 
 
 class EdgeModel:
@@ -146,7 +143,6 @@ class EdgeModel:
         service_module: the service module name (from the placement).
         fallback_latency_s: the on-device fallback latency of the use case.
         timeout_s: how long the user waits for a first reply (``inf`` with failures off).
-        device_radio_energy_j: the device's radio energy of every transfer so far.
         requests_seen: number of requests mapped to steps so far.
     """
 
@@ -195,11 +191,6 @@ class EdgeModel:
         self._radio = world.energy.radio
         self._input_bytes = world.input_bytes.tolist()
         self._output_bytes = world.output_bytes.tolist()
-        # The independent totals: per server, the integral over time of our running processes
-        # (process-seconds, closed at every change); the device's radio energy per transfer.
-        self._process_seconds = [0.0] * self.n_servers
-        self._last_change_s = [0.0] * self.n_servers
-        self.device_radio_energy_j = 0.0
 
     # ------------------------------------------------------------------ requests and steps
     def begin_request(self, request_id: Any) -> int:
@@ -283,7 +274,6 @@ class EdgeModel:
         :meth:`forget_request`)."""
         lost = lost_on_arrival = 0
         server_energy_j = radio_energy_j = 0.0
-        by_server = [0.0] * self.n_servers
         radio = self._radio
         for state in self._copies.get(request_id, ()):
             if state is None:
@@ -294,22 +284,8 @@ class EdgeModel:
                 lost_on_arrival += state.lost_on_arrival
             elif not state.refused:
                 radio_energy_j += radio.download_energy_j(self._output_bytes[state.step], state.output_s)
-            copy_energy_j = self._per_process_w * state.served_s
-            by_server[state.server] = copy_energy_j
-            server_energy_j += copy_energy_j
-        return CopyFates(lost, lost_on_arrival, server_energy_j, radio_energy_j, by_server)
-
-    def server_energy_totals_j(self, now_s: float) -> list[float]:
-        """Each server's marginal energy of our copies up to ``now_s``, from the integral of
-        its running processes over time (independent of the per-copy accounting)."""
-        return [self._per_process_w * (seconds + running * (now_s - last_s))
-                for seconds, running, last_s in zip(self._process_seconds, self._own_running,
-                                                    self._last_change_s, strict=True)]
-
-    def _processes_change(self, server: int, now_s: float, change: int) -> None:
-        self._process_seconds[server] += self._own_running[server] * (now_s - self._last_change_s[server])
-        self._last_change_s[server] = now_s
-        self._own_running[server] += change
+            server_energy_j += self._per_process_w * state.served_s
+        return CopyFates(lost, lost_on_arrival, server_energy_j, radio_energy_j)
 
     def forget_request(self, request_id: Any) -> None:
         """Drop the per-copy records of a completed request (keeps memory flat on long runs)."""
@@ -341,17 +317,11 @@ class EdgeModel:
     def hop_delay_s(self, sim: Sim, message: Message, src_node: Any, dst_node: Any) -> float:
         """Eq. 1's term for this hop (see the module docstring)."""
         if src_node == self.user_node:
-            state = self._dispatch(message, self._server_of_node[message.copy_dst_node])
-            self.device_radio_energy_j += self._radio.upload_energy_j(
-                self._input_bytes[state.step], state.input_s)
-            return state.input_s
+            return self._dispatch(message, self._server_of_node[message.copy_dst_node]).input_s
         if src_node == self.access_point_node:
             if dst_node == self.user_node:
                 server = self._server_of_node[message.copy_dst_node]
-                state = self._copies[message.id][server]
-                self.device_radio_energy_j += self._radio.download_energy_j(
-                    self._output_bytes[state.step], state.output_s)
-                return state.output_s
+                return self._copies[message.id][server].output_s
             state = self._copies[message.id][self._server_of_node[dst_node]]
             return state.rtt_s + state.input_s
         source_server = self._server_of_node.get(src_node)
@@ -368,8 +338,7 @@ class EdgeModel:
         server = self._server_of_node[node]
         state = self._copies[message.id][server]
         down = self._down
-        now_s = sim.env.now
-        if down is not None and down.is_down(server, now_s):
+        if down is not None and down.is_down(server, sim.env.now):
             # A server that is down cannot refuse: the copy is lost, and the user never hears.
             state.lost = state.lost_on_arrival = True
             return False
@@ -377,9 +346,10 @@ class EdgeModel:
         if active >= self._max_load:
             state.refused = True
             return False
-        self._processes_change(server, now_s, +1)
+        self._own_running[server] += 1
         state.compute_s = state.served_s = self._compute[state.step][server * self._compute_width + active]
         if down is not None:
+            now_s = sim.env.now
             failed_s = down.first_failure_s(server, now_s, now_s + state.compute_s)
             if failed_s is not None:
                 state.lost = True
@@ -393,4 +363,4 @@ class EdgeModel:
 
     def release(self, sim: Sim, message: Message, des: int, node: Any, module: str) -> None:
         """The copy's process ends (or its server failed): one active user fewer on the server."""
-        self._processes_change(self._server_of_node[node], sim.env.now, -1)
+        self._own_running[self._server_of_node[node]] -= 1
