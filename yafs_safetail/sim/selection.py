@@ -80,6 +80,8 @@ class PolicySelection(Selection):
         # Routes are fixed per subset (requests) and per server node (replies): build each once.
         self._request_routes: dict[tuple[int, ...], tuple[tuple[int, ...], tuple[list[list[Any]], list[Any]]]] = {}
         self._reply_routes: dict[Any, tuple[list[list[Any]], list[Any]]] = {}
+        # Only copies on servers that can fail are ever lost: without failures, no look-up per reply.
+        self._copies_can_be_lost = edge_model.world.down_intervals is not None
 
     def _resolve_processes(self, app_name: Any, alloc_des: dict[int, Any], alloc_module: dict[Any, Any]) -> None:
         model = self.edge_model
@@ -115,7 +117,7 @@ class PolicySelection(Selection):
                     self._request_routes[chosen] = cached
             self._pending[message.id] = (step, cached[0])
             return cached[1]
-        if model.copy_lost(message.id, topology_src):
+        if self._copies_can_be_lost and model.copy_lost(message.id, topology_src):
             return [], []  # its server failed before the reply left: the user never hears of it
         route = self._reply_routes.get(topology_src)
         if route is None:
