@@ -9,7 +9,6 @@ it and the input helpers are importable from here too (the examples and most cal
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -145,8 +144,8 @@ def _worst_copy_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampli
     )
 
 
-def _fallback_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampling.LinkScales,
-                        max_load: int, settings: WorldSettings) -> float:
+def _fallback_latency_s(use_case: UseCase, inputs: TraceInputs, settings: WorldSettings,
+                        worst_copy_latency_s: float) -> float:
     """The on-device fallback latency of a world.
 
     With the landed fallback rule it is the use case's, raised to the worst-case edge latency of
@@ -157,24 +156,9 @@ def _fallback_latency_s(use_case: UseCase, inputs: TraceInputs, scales: sampling
     admitted copies are slower than the device.
     """
     if settings.fallback_compute_multiple is None:
-        worst_s = _worst_copy_latency_s(use_case, inputs, scales, max_load)
         # Rounded up to 0.1 s so the recorded value reads cleanly in results.
-        return max(float(use_case.fallback_latency_s), math.ceil(worst_s * 10) / 10)
+        return max(float(use_case.fallback_latency_s), math.ceil(worst_copy_latency_s * 10) / 10)
     return settings.fallback_compute_multiple * float(inputs.median_compute_by_k_s[0])
-
-
-def _phase_failures(failures: FailureSettings, stream: np.random.SeedSequence, n_servers: int,
-                    horizon_s: float, worst_copy_latency_s: Callable[[], float]) -> tuple[DownIntervals | None, float]:
-    """The phase's outages and the user's time-out (none and ``inf`` without failures).
-
-    Drawn last, from their own stream: a world without failures draws nothing here, and a world
-    with them has exactly the same requests, bandwidths, loads and RTTs.
-    """
-    down_intervals = (phase_down_intervals(failures, n_servers, horizon_s, np.random.default_rng(stream))
-                      if failures.enabled else None)
-    timeout_s = (effective_timeout_s(failures, worst_copy_latency_s())
-                 if failures.enabled or failures.timeout_s is not None else math.inf)
-    return down_intervals, timeout_s
 
 
 def build_world(
@@ -221,7 +205,12 @@ def build_world(
     nu = use_case.nu if settings.nu is None else settings.nu
     _check_world_inputs(scenario, use_case, inputs, n_steps, episode_steps, max_load, nu)
     scales = link_scales(scenario)
-    fallback_latency_s = _fallback_latency_s(use_case, inputs, scales, max_load, settings)
+    failures = FailureSettings() if failures is None else failures
+    # The bound costs a compute-model pass: computed once, and only when the landed fallback rule
+    # or the default time-out with failures on needs it.
+    needs_bound = settings.fallback_compute_multiple is None or (failures.enabled and failures.timeout_s is None)
+    worst_s = _worst_copy_latency_s(use_case, inputs, scales, max_load) if needs_bound else math.inf
+    fallback_latency_s = _fallback_latency_s(use_case, inputs, settings, worst_s)
 
     n = scenario.n_servers
     streams = phase_streams(seed, phase)
@@ -241,10 +230,12 @@ def build_world(
         inputs, scenario.server_conditions, servers.rtt_quantiles,
         scales.server_extra_propagation_s, settings.propagation_rtt_fraction)
     target_compute_s = target_compute_by_request_s(inputs, requests.gamma, nu, settings.target_compute)
-    failures = FailureSettings() if failures is None else failures
-    down_intervals, timeout_s = _phase_failures(
-        failures, streams["failures"], n, (n_steps + 1) * step_interval_s,
-        lambda: _worst_copy_latency_s(use_case, inputs, scales, max_load))
+    # The outages are drawn last, from their own stream: a world without failures draws nothing
+    # here, and a world with them has exactly the same requests, bandwidths, loads and RTTs.
+    down_intervals: DownIntervals | None = (
+        phase_down_intervals(failures, n, (n_steps + 1) * step_interval_s,
+                             np.random.default_rng(streams["failures"]))
+        if failures.enabled else None)
     return EdgeWorld(
         seed=int(seed),
         phase=phase,
@@ -282,6 +273,6 @@ def build_world(
         settings=settings,
         failures=failures,
         down_intervals=down_intervals,
-        timeout_s=timeout_s,
+        timeout_s=effective_timeout_s(failures, worst_s),
         energy=EnergyModel() if energy is None else energy,
     )
