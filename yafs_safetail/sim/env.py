@@ -224,11 +224,10 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
             raise SimulationError(
                 f"request {self._step} did not complete within step_interval_s={self.step_interval_s}"
             )
-        value = reward(record.latency_s, record.target_s, len(subset), self.n_servers, self.delta)
         prices = self.learner_config
-        if prices.energy_price_per_j or prices.failure_penalty:
-            value = priced_reward(value, record.energy_j, record.end_reason == END_REPLY,
-                                  prices.energy_price_per_j, prices.failure_penalty)
+        value = priced_reward(reward(record.latency_s, record.target_s, len(subset), self.n_servers, self.delta),
+                              record.energy_j, record.end_reason == END_REPLY,
+                              prices.energy_price_per_j, prices.failure_penalty)
         record = dataclasses.replace(record, reward=value)
         self._step += 1
         truncated = self._step % self.episode_steps == 0 or self._step >= self.world.n_steps
