@@ -68,6 +68,8 @@ class HopTables:
         output_transfer_s: per [step][server * levels + level].
         compute_s: per [step][server * max_load + k - 1].
         target_s: τ per [step].
+        input_bytes: Size(I) per [step] (a copy's upload energy).
+        output_bytes: Size(O) per [step] (a received reply's download energy).
     """
 
     background_users: list[list[int]]
@@ -76,6 +78,8 @@ class HopTables:
     output_transfer_s: list[list[float]]
     compute_s: list[list[float]]
     target_s: list[float]
+    input_bytes: list[float]
+    output_bytes: list[float]
 
 
 @dataclass(frozen=True)
@@ -255,6 +259,8 @@ class EdgeWorld:
             output_transfer_s=self.output_transfer_by_level_s.reshape(steps, -1).tolist(),
             compute_s=self.compute_by_processes_s.reshape(steps, -1).tolist(),
             target_s=self.target_s.tolist(),
+            input_bytes=self.input_bytes.tolist(),
+            output_bytes=self.output_bytes.tolist(),
         )
 
     @cached_property

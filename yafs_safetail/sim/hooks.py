@@ -182,6 +182,8 @@ class EdgeModel:
         self._rtt = tables.rtt_s
         self._compute = tables.compute_s
         self._target = tables.target_s
+        self._input_bytes = tables.input_bytes
+        self._output_bytes = tables.output_bytes
         self._levels = world.n_contention_levels
         self._max_load = world.max_load
         self._compute_width = world.compute_by_processes_s.shape[2]
@@ -189,8 +191,6 @@ class EdgeModel:
         self._down = world.down_intervals
         self._per_process_w = world.energy.server.per_process_w
         self._radio = world.energy.radio
-        self._input_bytes = world.input_bytes.tolist()
-        self._output_bytes = world.output_bytes.tolist()
 
     # ------------------------------------------------------------------ requests and steps
     def begin_request(self, request_id: Any) -> int:
