@@ -57,7 +57,9 @@ class FailureHandling:
     def lost_on_the_way(self, copy: Copy) -> bool:
         """Whether ``copy``, not on a link now, was lost by a failure it has not met yet: its
         server went down after it left the user (its input on the way), or, with at-start
-        links, before its reply had left the server."""
+        links, before its reply had left the server. (Always False on a server that never went
+        down: ``on_reply`` and ``on_cancel`` check ``down_starts_s`` first, so without failures
+        a copy costs no call here.)"""
         state = copy.state
         if state == TRANSIT and copy.transfer is None:
             return copy.server.went_down_within(copy.sent_s, self.now_s)

@@ -344,7 +344,7 @@ class Simulation(FailureHandling, SharedCapacity):
 
     def on_reply(self, copy: Copy, _: int) -> None:
         """``copy``'s reply reaches the user: the first one ends its request."""
-        if copy.state == LOST or self.lost_on_the_way(copy):
+        if copy.state == LOST or (copy.server.down_starts_s and self.lost_on_the_way(copy)):
             if copy.state != LOST:
                 self.lose(copy)
             return
@@ -373,7 +373,7 @@ class Simulation(FailureHandling, SharedCapacity):
                     self.charge_download(copy.request, sent, transfer_s)
                 else:
                     self.charge_upload(copy.request, sent, transfer_s)
-            elif self.lost_on_the_way(copy):
+            elif copy.server.down_starts_s and self.lost_on_the_way(copy):
                 self.lose(copy)  # its server failed after it left: the cancel finds nothing
                 return
             copy.state = CANCELLED
