@@ -276,7 +276,6 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         self.episode_requests = episode_requests
         self.method_name = method_name
         self.action_space = spaces.Discrete(n_actions(n))
-        self._kind = observation
         self._scales = StateScales.for_use_case(self.use_case.number)
         n_gamma, n_location = len(self.use_case.gamma_columns), len(self._scenario.user_location)
         self.observation_space = observation_space(observation, n, n_gamma, n_location)
@@ -381,4 +380,3 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
 
     def _encode(self, observation: Observation) -> Any:
         return encode_observation(self.observation_space, observation, self._scales)
-
