@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from yafs_safetail.contention.run import PolicyDispatcher, run_policy, summarise
-from yafs_safetail.contention.sweep import SweepConfig
+from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.contention.world import (
     LINK_MODELS,
     ContentionConfig,
@@ -435,7 +435,7 @@ def test_sweep_checks_are_computed_from_the_rows():
 
 
 def test_both_safetails_are_checked_and_neither_is_a_fixed_method():
-    from yafs_safetail.contention.sweep import SAFETAIL_CA
+    from yafs_safetail.contention.sweep_config import SAFETAIL_CA
     from yafs_safetail.contention.sweep_report import (
         best_fixed_p99,
         glance_markdown,

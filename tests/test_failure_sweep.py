@@ -11,12 +11,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from yafs_safetail.contention.sweep import (
+from yafs_safetail.contention.sweep import point_specs
+from yafs_safetail.contention.sweep_config import (
     DEFAULT_FAILURE_LOAD,
     FAILURE_POINT,
     FailureSweepConfig,
     SweepConfig,
-    point_specs,
 )
 from yafs_safetail.contention.sweep_report import failure_checks
 from yafs_safetail.contention.world import ContentionConfig, ContentionError

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from yafs_safetail.contention.sweep import FAILURE_POINT, LOAD_POINT
+from yafs_safetail.contention.sweep_config import FAILURE_POINT, LOAD_POINT
 from yafs_safetail.runs.engines import RUN_KINDS, RunTask, execute
 from yafs_safetail.runs.grid import RunSpec
 

@@ -67,7 +67,8 @@ def test_the_contention_world_takes_the_experiments_world_overrides():
 
 def test_a_sweep_point_records_the_world_overrides_only_when_set():
     from yafs_safetail.contention.config import ContentionConfig
-    from yafs_safetail.contention.sweep import SweepConfig, point_specs
+    from yafs_safetail.contention.sweep import point_specs
+    from yafs_safetail.contention.sweep_config import SweepConfig
 
     plain = SweepConfig(base=ContentionConfig(users=10), loads=(0.5,))
     assert not {"target_latency_s", "load_peak_users", "target_compute"} & set(plain.point_settings(0.5))

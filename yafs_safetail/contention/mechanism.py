@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.contention.run import run_policy
-from yafs_safetail.contention.sweep import SweepConfig
 from yafs_safetail.contention.sweep import _safetail_policy as safetail_policy
+from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.policy import Policy
 

@@ -1,18 +1,18 @@
 """The contention world's sweeps: every method at every point of one axis.
 
 Two axes share one loop (:func:`run_sweep`), one campaign path (each point a campaign run:
-:func:`point_specs`, :func:`run_sweep_point`) and one table per point: the **load sweep**
-(:class:`SweepConfig`, the offered load rises) and the **failure sweep**
-(:class:`FailureSweepConfig`, each server's stationary probability of being down rises at a
-fixed load; issue 31).
+:func:`point_specs`, :func:`run_sweep_point`) and one table per point: the **load sweep** (the
+offered load rises) and the **failure sweep** (each server's stationary probability of being
+down rises at a fixed load; issue 31); ``contention.sweep_config`` says what each is
+(``SweepConfig``, ``FailureSweepConfig``).
 
 At each point: a training world and a test world (independent streams, same users and
 settings); each SafeTail learns on the training world at that point and is tested greedily;
 every other method runs on the test world only. By default two SafeTails run side by side
-(:data:`SAFETAIL_LEARNERS`): ``SafeTail``, the paper's learner (§III's target vector, Eq. 5
-against τ, copies sent all at once), and ``SafeTail-CA``, the contention-aware one (the value
-learner that prices each copy by the jobs it joins, tied copies; docs/deviations.md D13). All
-methods of a point see the same arrivals, per-request draws and outages (common random
+(``sweep_config.SAFETAIL_LEARNERS``): ``SafeTail``, the paper's learner (§III's target vector,
+Eq. 5 against τ, copies sent all at once), and ``SafeTail-CA``, the contention-aware one (the
+value learner that prices each copy by the jobs it joins, tied copies; docs/deviations.md D13).
+All methods of a point see the same arrivals, per-request draws and outages (common random
 numbers). One row per (point, method) goes to the point's ``sweep.csv``.
 """
 
@@ -29,35 +29,12 @@ from typing import Any
 import pandas as pd
 
 from yafs_safetail.contention.run import run_policy, summarise
-from yafs_safetail.contention.sweep_checks import failure_level_list as failure_level_list
-
-# The sweeps' configuration, declared where the commands' options can read it before anything
-# heavy loads; every name is importable from here too, as before.
-from yafs_safetail.contention.sweep_config import DEFAULT_FAILURE_LOAD as DEFAULT_FAILURE_LOAD
-from yafs_safetail.contention.sweep_config import DEFAULT_FAILURE_METHODS as DEFAULT_FAILURE_METHODS
-from yafs_safetail.contention.sweep_config import DEFAULT_SWEEP_METHODS as DEFAULT_SWEEP_METHODS
-from yafs_safetail.contention.sweep_config import DEFAULT_VALUE_NETWORKS as DEFAULT_VALUE_NETWORKS
-from yafs_safetail.contention.sweep_config import FAILURE_AXIS as FAILURE_AXIS
-from yafs_safetail.contention.sweep_config import FAILURE_LEVELS as FAILURE_LEVELS
-from yafs_safetail.contention.sweep_config import FAILURE_POINT as FAILURE_POINT
-from yafs_safetail.contention.sweep_config import FAILURE_SWEEP_COLUMNS as FAILURE_SWEEP_COLUMNS
-from yafs_safetail.contention.sweep_config import LEARNER_DEFAULTS as LEARNER_DEFAULTS
-from yafs_safetail.contention.sweep_config import LEARNERS as LEARNERS
-from yafs_safetail.contention.sweep_config import LOAD_AXIS as LOAD_AXIS
-from yafs_safetail.contention.sweep_config import LOAD_POINT as LOAD_POINT
-from yafs_safetail.contention.sweep_config import LOADS as LOADS
-from yafs_safetail.contention.sweep_config import METHOD_NAMES as METHOD_NAMES
-from yafs_safetail.contention.sweep_config import ONE_LOAD as ONE_LOAD
-from yafs_safetail.contention.sweep_config import POINT_KINDS as POINT_KINDS
-from yafs_safetail.contention.sweep_config import SAFETAIL_CA as SAFETAIL_CA
-from yafs_safetail.contention.sweep_config import SAFETAIL_LEARNERS as SAFETAIL_LEARNERS
-from yafs_safetail.contention.sweep_config import SWEEP_COLUMNS as SWEEP_COLUMNS
-from yafs_safetail.contention.sweep_config import TEST_REQUESTS as TEST_REQUESTS
-from yafs_safetail.contention.sweep_config import ContentionSweep as ContentionSweep
-from yafs_safetail.contention.sweep_config import FailureSweepConfig as FailureSweepConfig
-from yafs_safetail.contention.sweep_config import SafeTailVariant as SafeTailVariant
-from yafs_safetail.contention.sweep_config import SweepAxis as SweepAxis
-from yafs_safetail.contention.sweep_config import SweepConfig as SweepConfig
+from yafs_safetail.contention.sweep_config import (
+    LOAD_POINT,
+    POINT_KINDS,
+    ContentionSweep,
+    SafeTailVariant,
+)
 from yafs_safetail.contention.world import ContentionError, ContentionWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.methods.policy import Policy
@@ -70,6 +47,7 @@ from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.workers import method_rng
 
 log = logging.getLogger(__name__)
+
 
 def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int) -> SafeTailPolicy:
     # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.

@@ -7,7 +7,7 @@ Light modules only (the standard library, ``cli``, ``defaults``, ``runs.settings
 these classes, and ``--help`` or a bad argument must answer before NumPy, pandas or TensorFlow
 loads (``tests/test_first_answer.py``). What needs the learner's presets (each SafeTail's training
 budget) imports them when asked, after the arguments are checked. ``contention.sweep`` runs the
-sweeps and re-exports every name here.
+sweeps.
 """
 
 from __future__ import annotations
