@@ -33,13 +33,15 @@ def _learner_names(text: str) -> tuple[str, ...]:
 #: SafeTail's learners: distinct names of OBJECTIVES.
 LEARNERS = Check(f"distinct names of {', '.join(OBJECTIVES)}", lambda v: isinstance(v, tuple) and bool(v) and len(
     set(v)) == len(v) and all(name in OBJECTIVES for name in v), _learner_names)
-#: Offered loads: distinct utilisations in (0, 10).
-LOADS = Check("distinct loads in (0, 10)", lambda v: isinstance(v, tuple) and len(set(v)) == len(v) and all(
-    not isinstance(x, bool) and isinstance(x, float | int) and 0 < x < 10 for x in v), load_list)
 
 
 def _is_load(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, float | int) and 0 < value < 10
+
+
+#: Offered loads: distinct utilisations in (0, 10).
+LOADS = Check("distinct loads in (0, 10)",
+              lambda v: isinstance(v, tuple) and len(set(v)) == len(v) and all(_is_load(x) for x in v), load_list)
 
 
 def _one_load(text: str) -> float:
