@@ -16,7 +16,7 @@ from yafs_safetail.contention.state import LOST, QUEUED, REFUSED, REPLYING, RUNN
 from yafs_safetail.contention.types import END_ALL_LOST_CODE, END_TIMEOUT_CODE
 
 if TYPE_CHECKING:
-    from yafs_safetail.contention.state import Copy, Request, Server
+    from yafs_safetail.contention.state import Copy, Request, Server, Transfer
     from yafs_safetail.contention.types import EngineResult, EngineSettings
 
 
@@ -77,6 +77,12 @@ class FailureHandling:
         self.radio_energy_j[request.index] += (self.radio_down_j_per_byte * fraction * request.output_bytes
                                                + self.radio_active_w * transfer_s)
 
+    def charge_stopped(self, transfer: Transfer) -> None:
+        """``transfer`` stops now (cancelled or lost): the device's radio for what it moved."""
+        now_s = self.now_s
+        charge = self.charge_download if transfer.link.is_up else self.charge_upload
+        charge(transfer.copy.request, transfer.sent_fraction(now_s), now_s - transfer.started_s)
+
     def stop_computing(self, copy: Copy) -> None:
         """``copy`` stops running now (done, cancelled or lost): its server time and energy."""
         ran_s = self.now_s - copy.start_s
@@ -136,12 +142,8 @@ class FailureHandling:
         server.queue.clear()
         for link in (server.down, server.up):
             for transfer in link.transfers:
+                self.charge_stopped(transfer)
                 copy = transfer.copy
-                sent, transfer_s = transfer.sent_fraction(now_s), now_s - transfer.started_s
-                if link.is_up:
-                    self.charge_download(copy.request, sent, transfer_s)
-                else:
-                    self.charge_upload(copy.request, sent, transfer_s)
                 copy.transfer = None
                 self.lose(copy)
             link.transfers.clear()

@@ -367,12 +367,8 @@ class Simulation(FailureHandling, SharedCapacity):
             # Still being sent (its input, or its reply on the up link): the transfer stops.
             transfer = copy.transfer
             if transfer is not None:
-                sent, transfer_s = transfer.sent_fraction(self.now_s), self.now_s - transfer.started_s
+                self.charge_stopped(transfer)
                 self.leave_link(transfer)
-                if transfer.link.is_up:
-                    self.charge_download(copy.request, sent, transfer_s)
-                else:
-                    self.charge_upload(copy.request, sent, transfer_s)
             elif copy.server.down_starts_s and self.lost_on_the_way(copy):
                 self.lose(copy)  # its server failed after it left: the cancel finds nothing
                 return
