@@ -187,7 +187,6 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         self.scenario = self._recipe.scenario
         self.n_servers = n = self.scenario.n_servers
         self.action_space = spaces.Discrete(n_actions(n))
-        self._kind = observation
         self._scales = StateScales.for_use_case(self.use_case.number)
         n_gamma, n_location = len(self.use_case.gamma_columns), len(self.scenario.user_location)
         self.observation_space = observation_space(observation, n, n_gamma, n_location)
