@@ -46,12 +46,15 @@ def test_a_drawing_error_comes_back_as_the_same_exception(rows, tmp_path):
         worker.stop()
 
 
-def test_a_killed_process_is_one_line(rows, tmp_path):
+@pytest.mark.parametrize("given_rows", [False, True], ids=["waited on", "given its rows"])
+def test_a_killed_process_is_one_line(rows, tmp_path, given_rows):
     worker = FiguresWorker()
     try:
         os.kill(worker._process.pid, signal.SIGKILL)
         worker._process.join()
         with pytest.raises(WorkerDied, match=r"figures process \(pid \d+\) was killed by signal 9 \(SIGKILL\)"):
+            if given_rows:  # as a run does: the rows first (its pipe is broken), then the wait
+                worker.draw(tmp_path, *rows, ("png",))
             worker.wait()
     finally:
         worker.stop()

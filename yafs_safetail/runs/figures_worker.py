@@ -62,8 +62,15 @@ class FiguresWorker:
         log.debug("figures process %s started", self._process.pid)
 
     def draw(self, folder: Path, requests: pd.DataFrame, run: RunMetadata, formats: Sequence[str]) -> None:
-        """Start drawing ``folder``'s figures from the run's rows (returns at once)."""
-        self._channel.send((folder, requests, run, tuple(formats)))
+        """Start drawing ``folder``'s figures from the run's rows (returns at once).
+
+        Raises:
+            WorkerDied: the process has died (killed) before it was given the rows.
+        """
+        try:
+            self._channel.send((folder, requests, run, tuple(formats)))
+        except BrokenPipeError:  # its end is closed: it died, and wait() says how
+            self.wait()
         self._sent = True
 
     def wait(self) -> list[Path]:
