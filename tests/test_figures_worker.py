@@ -63,7 +63,7 @@ def test_a_killed_process_is_one_line(rows, tmp_path, given_rows):
 def test_stopping_an_idle_process_ends_it_at_once():
     worker = FiguresWorker()
     worker.stop()
-    assert not worker._process.is_alive() and worker._process.exitcode == 0
+    assert not worker._process.is_alive() and worker._process.exitcode == -signal.SIGTERM
 
 
 def test_one_process_runs_draw_here(monkeypatch):

@@ -33,12 +33,9 @@ def _figures_main(channel: Connection) -> None:
     with contextlib.suppress(Exception):  # the import this process is here to pay, while the run computes
         import yafs_safetail.figures  # noqa: F401
     try:
-        job = channel.recv()
-    except EOFError:  # the parent closed the pipe: nothing to draw
+        folder, requests, run, formats = channel.recv()
+    except EOFError:  # the parent is gone (it never closes the pipe first): nothing to draw
         return
-    if job is None:  # the run ended without figures to draw
-        return
-    folder, requests, run, formats = job
 
     def draw() -> list[Path]:
         from yafs_safetail.figures import draw_figures
@@ -58,7 +55,6 @@ class FiguresWorker:
                                          name="yafs-safetail-figures")
         self._process.start()
         child_end.close()
-        self._sent = False
         log.debug("figures process %s started", self._process.pid)
 
     def draw(self, folder: Path, requests: pd.DataFrame, run: RunMetadata, formats: Sequence[str]) -> None:
@@ -71,7 +67,6 @@ class FiguresWorker:
             self._channel.send((folder, requests, run, tuple(formats)))
         except BrokenPipeError:  # its end is closed: it died, and wait() says how
             self.wait()
-        self._sent = True
 
     def wait(self) -> list[Path]:
         """The written figure files, once drawn; re-raises the drawing's exception.
@@ -93,15 +88,8 @@ class FiguresWorker:
     def stop(self) -> None:
         """End the process if it still runs (the run failed before its figures) and free the pipe."""
         if self._process.is_alive():
-            if not self._sent:
-                try:
-                    self._channel.send(None)  # the gentle way: it exits at once
-                except OSError:
-                    pass
-                self._process.join(timeout=5.0)
-            if self._process.is_alive():
-                self._process.terminate()
-                self._process.join()
+            self._process.terminate()
+            self._process.join()
         self._channel.close()
 
 
