@@ -72,5 +72,5 @@ def test_one_process_runs_draw_here(monkeypatch):
     class Daemonic:
         daemon = True
 
-    monkeypatch.setattr("yafs_safetail.runs.figures_worker.multiprocessing.current_process", Daemonic)
+    monkeypatch.setattr("yafs_safetail.runs.workers.multiprocessing.current_process", Daemonic)
     assert start_figures_worker(2) is None

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import multiprocessing
 from collections.abc import Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from yafs_safetail.runs.workers import WorkerDied, become_worker, how_it_ended, send_outcome
+from yafs_safetail.runs.workers import ForkedWorker, become_worker, can_fork, send_outcome
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -45,16 +44,11 @@ def _figures_main(channel: Connection) -> None:
     send_outcome(channel, draw, "figures process")
 
 
-class FiguresWorker:
+class FiguresWorker(ForkedWorker):
     """A forked process that draws one run's figures when given its rows."""
 
     def __init__(self) -> None:
-        context = multiprocessing.get_context("fork")
-        self._channel, child_end = context.Pipe(duplex=True)
-        self._process = context.Process(target=_figures_main, args=(child_end,), daemon=True,
-                                         name="yafs-safetail-figures")
-        self._process.start()
-        child_end.close()
+        super().__init__(_figures_main, (), "yafs-safetail-figures", duplex=True)
         log.debug("figures process %s started", self._process.pid)
 
     def draw(self, folder: Path, requests: pd.DataFrame, run: RunMetadata, formats: Sequence[str]) -> None:
@@ -74,31 +68,11 @@ class FiguresWorker:
         Raises:
             WorkerDied: the process ended without a reply (killed).
         """
-        try:
-            ok, payload = self._channel.recv()
-        except EOFError:
-            self._process.join()
-            raise WorkerDied(f"the figures process (pid {self._process.pid}) "
-                             f"{how_it_ended(self._process.exitcode)}; the run stopped") from None
-        self._process.join()
-        if not ok:
-            raise payload
-        return list(payload)
-
-    def stop(self) -> None:
-        """End the process if it still runs (the run failed before its figures) and free the pipe."""
-        if self._process.is_alive():
-            self._process.terminate()
-            self._process.join()
-        self._channel.close()
+        return list(self._outcome(f"the figures process (pid {self._process.pid})", "the run stopped"))
 
 
 def start_figures_worker(workers: int) -> FiguresWorker | None:
     """A figures process when the run may use more than one process (``--workers`` ≥ 2) and can
-    fork (not where ``fork`` does not exist, nor inside a daemonic process such as a
-    ``multiprocessing.Pool`` worker, which may not have children); else None: the main process
-    draws them after writing, as before."""
-    if (workers < 2 or "fork" not in multiprocessing.get_all_start_methods()
-            or multiprocessing.current_process().daemon):
-        return None
-    return FiguresWorker()
+    fork (:func:`~yafs_safetail.runs.workers.can_fork`); else None: the main process draws them
+    after writing, as before."""
+    return FiguresWorker() if workers >= 2 and can_fork() else None

@@ -3,7 +3,8 @@
 A method's simulation depends only on the world and its own seeded generator, so running the
 baselines in other processes gives the same rows and files as running everything in one.
 Forking (rather than spawning) shares the worlds without pickling them and starts at once; a
-worker never touches TensorFlow.
+worker never touches TensorFlow. :class:`ForkedWorker` is such a process sending one outcome
+back; the figures process (``runs.figures_worker``) is one too.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -157,34 +159,39 @@ def _worker_main(job: MethodsJob, sender: Connection) -> None:
     send_outcome(sender, job.run, "baseline worker")
 
 
-class MethodsWorker:
-    """A forked process running a :class:`MethodsJob`."""
+def can_fork() -> bool:
+    """Whether this process can fork workers: ``fork`` exists here, and this process is not
+    daemonic (e.g. a ``multiprocessing.Pool`` worker, which may not have children)."""
+    return "fork" in multiprocessing.get_all_start_methods() and not multiprocessing.current_process().daemon
 
-    def __init__(self, job: MethodsJob) -> None:
-        self.job = job
+
+class ForkedWorker:
+    """A forked process running ``target(*args, its end of the pipe)``, which sends one outcome
+    back through that end (:func:`send_outcome`); with ``duplex`` it also reads from it."""
+
+    def __init__(self, target: Callable[..., None], args: tuple[Any, ...], name: str,
+                 duplex: bool = False) -> None:
         context = multiprocessing.get_context("fork")
-        self._receiver, sender = context.Pipe(duplex=False)
-        self._process = context.Process(target=_worker_main, args=(job, sender), daemon=True,
-                                         name="yafs-safetail-baselines")
+        self._channel, child_end = context.Pipe(duplex=duplex)
+        self._process = context.Process(target=target, args=(*args, child_end), daemon=True, name=name)
         self._process.start()
-        sender.close()
-        log.debug("worker process %s started: %s", self._process.pid, ", ".join(job.method_names))
+        child_end.close()
 
-    def result(self) -> tuple[list[pd.DataFrame], float]:
-        """Wait for the job's result; re-raises its exception."""
+    def _outcome(self, who: str, then: str) -> Any:
+        """Wait for the process's outcome; re-raises its exception.
+
+        Raises:
+            WorkerDied: the process ended without one (killed): ``{who} was killed by signal
+                ...; {then}``.
+        """
         try:
-            ok, payload = self._receiver.recv()
+            ok, payload = self._channel.recv()
         except EOFError:
             self._process.join()
-            raise WorkerDied(
-                f"the baseline worker (pid {self._process.pid}: {', '.join(self.job.method_names)}) "
-                f"{how_it_ended(self._process.exitcode)}; the run stopped and wrote no results"
-            ) from None
+            raise WorkerDied(f"{who} {how_it_ended(self._process.exitcode)}; {then}") from None
         self._process.join()
         if not ok:
             raise payload
-        log.debug("worker process %s ended: %s in %.1f s", self._process.pid,
-                  ", ".join(self.job.method_names), payload[1])
         return payload
 
     def stop(self) -> None:
@@ -192,7 +199,24 @@ class MethodsWorker:
         if self._process.is_alive():
             self._process.terminate()
             self._process.join()
-        self._receiver.close()
+        self._channel.close()
+
+
+class MethodsWorker(ForkedWorker):
+    """A forked process running a :class:`MethodsJob`."""
+
+    def __init__(self, job: MethodsJob) -> None:
+        self.job = job
+        super().__init__(_worker_main, (job,), "yafs-safetail-baselines")
+        log.debug("worker process %s started: %s", self._process.pid, ", ".join(job.method_names))
+
+    def result(self) -> tuple[list[pd.DataFrame], float]:
+        """Wait for the job's result; re-raises its exception."""
+        payload = self._outcome(f"the baseline worker (pid {self._process.pid}: {', '.join(self.job.method_names)})",
+                                "the run stopped and wrote no results")
+        log.debug("worker process %s ended: %s in %.1f s", self._process.pid,
+                  ", ".join(self.job.method_names), payload[1])
+        return payload
 
 
 def start_workers(job: MethodsJob, workers: int) -> list[MethodsWorker]:
@@ -201,8 +225,7 @@ def start_workers(job: MethodsJob, workers: int) -> list[MethodsWorker]:
     daemonic process (e.g. a ``multiprocessing.Pool`` worker, which may not have children)."""
     n_methods = len(job.names) + len(job.user_methods)
     n_processes = min(workers - 1, n_methods)
-    if (n_processes < 1 or "fork" not in multiprocessing.get_all_start_methods()
-            or multiprocessing.current_process().daemon):
+    if n_processes < 1 or not can_fork():
         return []
     # Bars stay with this process (bars from several processes garble a terminal); each
     # worker's job is its own logged phase, numbered when there are several.
