@@ -74,3 +74,17 @@ def test_one_process_runs_draw_here(monkeypatch):
 
     monkeypatch.setattr("yafs_safetail.runs.workers.multiprocessing.current_process", Daemonic)
     assert start_figures_worker(2) is None
+
+
+def test_a_figures_process_that_cannot_fork_fails_the_run_with_that_error(tmp_path, monkeypatch):
+    from yafs_safetail.runs.experiment import ExperimentConfig, run_experiment
+
+    def cannot_fork(workers):
+        raise BlockingIOError(11, "fork: resource temporarily unavailable")
+
+    monkeypatch.setattr("yafs_safetail.runs.experiment.start_figures_worker", cannot_fork)
+    config = ExperimentConfig(use_case=1, seed=5, out_dir=tmp_path / "run", steps_scale=0.02, workers=2,
+                              progress=False)
+    with pytest.raises(BlockingIOError, match="fork: resource temporarily unavailable"):
+        run_experiment(config)
+    assert list(tmp_path.iterdir()) == []

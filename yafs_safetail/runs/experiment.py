@@ -230,6 +230,7 @@ def _run_into(staging: Path, config: ExperimentConfig, inputs: _Inputs,
         progress_label=f"{prefix} other methods test", bar=config.progress,
     )
     workers = start_workers(others, config.workers)  # forked before TensorFlow loads
+    figures_worker = None  # (stopped below even if forking it fails)
     try:
         figures_worker = start_figures_worker(config.workers) if config.figures else None  # likewise
         return _learn_write_draw(staging, config, inputs, timings, started, checkpoints, others, workers,
