@@ -366,8 +366,7 @@ def check_config(config: Any, style: str = "option") -> None:
         if about.check is None or (value is None and about.optional):
             continue
         if not about.check.accepts(value):
-            name = about.option(item.name) if style == "option" and about.option(item.name) else item.name
-            raise ExperimentError(f"{name}: expected {about.check.what}, got {value!r}")
+            raise ExperimentError(f"{about.label(item.name, style)}: expected {about.check.what}, got {value!r}")
 
 
 def learner_overrides(config: LearnerOverrides) -> dict[str, Any]:

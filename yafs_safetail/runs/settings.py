@@ -140,6 +140,11 @@ class Setting:
         """The command-line option of the field ``name`` (``--steps-scale``), or ``""``."""
         return f"--{name.replace('_', '-')}" if self.flag is None else self.flag
 
+    def label(self, name: str, style: str) -> str:
+        """How an error names the field ``name``: its option in the ``"option"`` style (when it
+        has one), else the field's own name (the ``"field"`` style, for Python APIs)."""
+        return (self.option(name) or name) if style == "option" else name
+
 
 _SETTING = "yafs_safetail.setting"
 

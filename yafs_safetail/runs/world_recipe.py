@@ -78,6 +78,11 @@ class WorldRecipe(OnWorldParts):
                                step_interval_s=self.step_interval_s)
 
 
+def _label(name: str, style: str) -> str:
+    """How an error names the configuration field ``name`` (:meth:`Setting.label`)."""
+    return setting_of(next(f for f in dataclasses.fields(ExperimentConfig) if f.name == name)).label(name, style)
+
+
 def failure_settings(config: ExperimentConfig, n_servers: int, style: str = "option") -> FailureSettings:
     """The run's failures from its options (the down-intervals file read once, to check it).
 
@@ -85,12 +90,10 @@ def failure_settings(config: ExperimentConfig, n_servers: int, style: str = "opt
         ExperimentError: ``--failure-probability`` together with ``--failure-mttf-s``.
         FailureFileError: a bad down-intervals file (one line: file, row, field).
     """
-    def label(name: str) -> str:
-        return f"--{name.replace('_', '-')}" if style == "option" else name
-
     mttr_s = DEFAULT_MTTR_S if config.failure_mttr_s is None else float(config.failure_mttr_s)
     if config.failure_probability is not None and config.failure_mttf_s is not None:
-        raise ExperimentError(f"{label('failure_probability')}: give it or {label('failure_mttf_s')}, "
+        raise ExperimentError(f"{_label('failure_probability', style)}: give it or "
+                              f"{_label('failure_mttf_s', style)}, "
                               "not both (the probability sets the mean time to failure)")
     if config.failure_probability is not None:
         settings = FailureSettings.for_unavailability(float(config.failure_probability), mttr_s,
@@ -113,8 +116,7 @@ def energy_model(config: ExperimentConfig, style: str = "option") -> EnergyModel
     idle_w = default.idle_w if config.server_idle_w is None else float(config.server_idle_w)
     max_w = default.max_w if config.server_max_w is None else float(config.server_max_w)
     if max_w < idle_w:
-        name = "--server-max-w" if style == "option" else "server_max_w"
-        raise ExperimentError(f"{name}: {max_w:g} W is below the idle power {idle_w:g} W")
+        raise ExperimentError(f"{_label('server_max_w', style)}: {max_w:g} W is below the idle power {idle_w:g} W")
     return EnergyModel(server=ServerPowerModel(idle_w=idle_w, max_w=max_w))
 
 
@@ -137,9 +139,7 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
     try:
         settings, overrides = apply_world_overrides(parts.settings, config)
     except WorldOverrideError as error:  # named as the run's option (or field)
-        by_name = {item.name: item for item in dataclasses.fields(config)}
-        label = setting_of(by_name[error.name]).option(error.name) if style == "option" else error.name
-        raise ExperimentError(f"{label}: {error.value!r} is out of range") from None
+        raise ExperimentError(f"{_label(error.name, style)}: {error.value!r} is out of range") from None
     return WorldRecipe(parts=dataclasses.replace(parts, settings=settings), full_preset=full, learner=learner,
                        test_steps=scaled_steps(full.test_steps, config.steps_scale), overrides=overrides,
                        failures=failure_settings(config, parts.scenario.n_servers, style),
