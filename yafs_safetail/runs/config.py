@@ -76,21 +76,18 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ExperimentError", "Task", "WorldSetup", "WORLD_OVERRIDES", "LearnerOverrides", "Output",
-    "LATER_RESULT_FIELDS", "LEARNER_OBJECTIVES", "PROBABILITY_BELOW_ONE",
+    "LATER_RESULT_FIELDS",
     "ExperimentConfig", "GROUPS", "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS",
     "add_options", "config_from_args", "check_config", "learner_overrides", "learner_config",
     # From runs.settings.
     "Check", "Setting", "setting", "setting_of", "one_of", "BOOLEAN", "FORMATS", "LEVELS",
     "NON_NEGATIVE_INTEGER", "NON_NEGATIVE_NUMBER", "POSITIVE_INTEGER", "POSITIVE_NUMBER",
+    "PROBABILITY_BELOW_ONE",
 ]
 
 
 class ExperimentError(ValueError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
-
-
-#: SafeTail's learners (the ``--learner`` choices: defaults.OBJECTIVES, which the learner uses too).
-LEARNER_OBJECTIVES: tuple[str, ...] = OBJECTIVES
 
 
 # ----------------------------------------------------------------------------- the groups
@@ -204,7 +201,7 @@ class LearnerOverrides:
         None, "beyond the paper: SafeTail's learner, target-vector (the paper's §III, the default) or "
         "value (the network regresses each action's latency score, less the D15 prices when set, "
         "and copies to busy servers are priced at dispatch: the contention world's SafeTail-CA "
-        "learner; docs/deviations.md D13, D15)", check=one_of(LEARNER_OBJECTIVES), flag="--learner",
+        "learner; docs/deviations.md D13, D15)", check=one_of(OBJECTIVES), flag="--learner",
         optional=True)
     n_networks: int | None = setting(
         None, "with --learner value: how many value networks, each from its own initial weights, "
