@@ -234,13 +234,11 @@ def _failure_energy_lines(summary: pd.DataFrame, run: RunMetadata) -> list[str]:
              f"Servers fail in this run ({how}); the user waits {_fmt(timeout_s)} s for a reply, then "
              "takes the on-device fallback. Success = a reply within that time; energy = the servers' "
              "compute and the device's radio per request (docs/failures_energy.md).", ""]
-    columns = [c for c in ("success_rate", "all_lost_rate", "timeout_rate", "all_refused_rate",
-                           "energy_j_per_request") if c in summary.columns]
-    rows = [[m, *(_fmt(getattr(r, c)) for c in columns)]
-            for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)]
     header = {"success_rate": "success", "all_lost_rate": "all lost", "timeout_rate": "timed out",
               "all_refused_rate": "all refused", "energy_j_per_request": "energy per request (J)"}
-    return lines + markdown_table(["method", *(header[c] for c in columns)], rows)
+    rows = [[m, *(_fmt(getattr(r, c)) for c in header)]
+            for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)]
+    return lines + markdown_table(["method", *header.values()], rows)
 
 
 def write_summary(
