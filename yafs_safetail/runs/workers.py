@@ -36,6 +36,9 @@ from yafs_safetail.sim.runner import simulate
 
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
+#: The signals a worker handles its own way (:func:`become_worker`); blocked across the fork.
+_WORKER_SIGNALS = frozenset({signal.SIGTERM, signal.SIGINT})
+
 log = logging.getLogger(__name__)
 
 
@@ -136,6 +139,7 @@ def become_worker() -> None:
     handle; and it ends with its parent."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _WORKER_SIGNALS)  # one sent meanwhile acts now
     end_with_parent()
 
 
@@ -174,7 +178,15 @@ class ForkedWorker:
         context = multiprocessing.get_context("fork")
         self._channel, child_end = context.Pipe(duplex=duplex)
         self._process = context.Process(target=target, args=(*args, child_end), daemon=True, name=name)
-        self._process.start()
+        # Until become_worker() the child has the parent's handlers: a SIGTERM (stop()) in that
+        # instant would raise the run's Terminated in the child, which either unwinds the
+        # parent's stack there or is swallowed (in an at-fork hook) so that the child never
+        # ends. Blocked across the fork, it waits for the child's own handling.
+        unblocked = signal.pthread_sigmask(signal.SIG_BLOCK, _WORKER_SIGNALS)
+        try:
+            self._process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, unblocked)
         child_end.close()
 
     def _outcome(self, who: str, then: str) -> Any:
