@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import Done, run_in_process
 
 from yafs_safetail.contention.run import PolicyDispatcher, run_policy, summarise
 from yafs_safetail.contention.sweep_config import SweepConfig
@@ -27,6 +28,13 @@ from yafs_safetail.methods.policy import Policy, PolicyError
 from yafs_safetail.methods.registry import make_baseline
 
 SWEEP = REPOSITORY / "experiments" / "load_sweep.py"
+
+
+def sweep_here(*args: str) -> Done:
+    """``load_sweep.py ARGS`` in this process (tests/in_process.py: TensorFlow imported once)."""
+    from yafs_safetail.commands import load_sweep
+
+    return run_in_process(load_sweep.main, *args)
 
 
 def policy(name: str, seed: int = 0):
@@ -201,7 +209,7 @@ def test_load_sweep_small_budget(tmp_path):
     out = tmp_path / "sweep"
     command = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.2,0.8", "--steps-scale", "0.02",
                "--methods", "Oracle,MinLoad-1,Tied", "--seed", "3", "--out", str(out)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    done = sweep_here(*command[2:])
     assert done.returncode == 0, done.stderr
     frame = pd.read_csv(out / "sweep.csv")
     for column in ("load", "method", "n_requests", "p50_s", "p99_s", "mean_n_selected", "fallback_rate"):
@@ -226,7 +234,7 @@ def test_load_sweep_small_budget(tmp_path):
     assert "load-0.8 sweep: done" in load_log and "load 0.8: Tied" in load_log and "--users 10" in load_log
     first = (out / "sweep.csv").read_bytes()
     # Each load is a campaign run: rerunning resumes and recomputes nothing.
-    again = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    again = sweep_here(*command[2:])
     assert again.returncode == 0, again.stderr
     assert "2 runs: 0 computed now, 2 done earlier" in again.stderr
     assert (out / "sweep.csv").read_bytes() == first
@@ -398,11 +406,9 @@ def test_feedback_records_carry_the_target_asked_for():
 
 def test_load_sweep_target_and_links_options(tmp_path):
     out = tmp_path / "sweep"
-    done = subprocess.run([sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
-                           "--methods", "Oracle", "--target", "observed-load", "--links", "at-start",
-                           "--learner", "target-vector",
-                           "--out", str(out)],
-                          capture_output=True, text=True, timeout=600)
+    done = sweep_here("--users", "10", "--loads", "0.5", "--steps-scale", "0.02", "--methods", "Oracle",
+                      "--target", "observed-load", "--links", "at-start", "--learner", "target-vector",
+                      "--out", str(out))
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
     assert run["target"] == "observed-load" and run["links"] == "at-start"
@@ -476,9 +482,8 @@ def test_load_sweep_test_requests_option(tmp_path):
     from yafs_safetail.contention.run import WARMUP_FRACTION
 
     out = tmp_path / "sweep"
-    done = subprocess.run([sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
-                           "--test-requests", "1000", "--no-safetail", "--methods", "Tied", "--out", str(out)],
-                          capture_output=True, text=True, timeout=600)
+    done = sweep_here("--users", "10", "--loads", "0.5", "--steps-scale", "0.02", "--test-requests", "1000",
+                      "--no-safetail", "--methods", "Tied", "--out", str(out))
     assert done.returncode == 0, done.stderr
     # 1,000 test requests whatever --steps-scale (which alone would give 400), warm-up left out.
     assert json.loads((out / "run.json").read_text())["test_requests"] == 1000
@@ -646,7 +651,7 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
     command = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
                "--methods", "Tied", "--preset", "tuned", "--learner", "value", "--safetail-dispatch", "tied",
                "--value-networks", "2", "--seed", "2", "--out", str(out)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    done = sweep_here(*command[2:])
     assert done.returncode == 0, done.stderr
     [safetail] = json.loads((out / "run.json").read_text())["safetails"]
     assert (safetail["learner"], safetail["dispatch"], safetail["reward"]) == ("value", "tied", "latency-cost")

@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import pytest
+from test_golden_results import CAMPAIGN_GRID, GOLDEN_FILE, digests
 
 from yafs_safetail.runs.output import OutputError, StagedOutput
 
@@ -200,7 +201,8 @@ def test_overwrite_on_a_full_disk_keeps_the_earlier_run_byte_for_byte(small_disk
 # --------------------------------------------------------------------------------------------
 # A campaign worker killed outright (SIGKILL, as the out-of-memory killer does)
 
-_GRID = "[base]\nsteps_scale = 0.013\nfigures = false\n[axes]\nseed = [0, 1]\n"
+#: The golden check's campaign (two runs), so that its golden is the campaign without the kill.
+_GRID = CAMPAIGN_GRID
 
 
 def _campaign(cwd: Path, *extra: str, env: dict[str, str] | None = None):
@@ -217,25 +219,17 @@ def _campaign(cwd: Path, *extra: str, env: dict[str, str] | None = None):
                           env={**os.environ, **(env or {})})
 
 
-def _run_files(campaign: Path) -> dict[str, bytes]:
-    """Every file of the campaign folder but the logs, the lock and campaign.json (which
-    record times and statuses)."""
-    skipped = {"run.log", "campaign.log", "campaign.json", ".campaign.lock"}
-    return {str(p.relative_to(campaign)): p.read_bytes() for p in sorted(campaign.rglob("*"))
-            if p.is_file() and p.name not in skipped}
-
-
 def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_completes_it(tmp_path):
     import json
 
     from yafs_safetail.runs.engines import KILL_RUN_ENV
     from yafs_safetail.runs.grid import load_grid
 
-    uncut = _campaign(tmp_path / "uncut")
-    assert uncut.returncode == 0, uncut.stderr[-2000:]
-    specs = load_grid(tmp_path / "uncut" / "grid.toml")
-    victim = specs[1]
     out = tmp_path / "killed" / "campaign"
+    (tmp_path / "killed").mkdir()
+    (tmp_path / "killed" / "grid.toml").write_text(_GRID)
+    specs = load_grid(tmp_path / "killed" / "grid.toml")
+    victim = specs[1]
 
     # The worker running the second run kills itself with SIGKILL just before publishing it.
     killed = _campaign(tmp_path / "killed", env={KILL_RUN_ENV: victim.name})
@@ -255,9 +249,12 @@ def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_compl
     state = json.loads((out / "campaign.json").read_text())
     assert [run["status"] for run in state["runs"]] == ["done earlier", "done"]
     assert stamps == {name: (out / name / "run.json").stat().st_mtime_ns for name in stamps}
-    assert _run_files(out) == _run_files(tmp_path / "uncut" / "campaign")
-    # Nothing of the killed attempt is left: no temporary folder, no lock beside the runs.
-    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in (tmp_path / "uncut" / "campaign").iterdir())
+    # The files of the same campaign never killed: the golden check's (its normalised digests).
+    assert digests(out) == json.loads(GOLDEN_FILE.read_text())["campaign"]
+    # Nothing of the killed attempt is left: no temporary folder, no run's lock; only the
+    # campaign's own files (its lock file included, as after any campaign) and its runs.
+    assert sorted(p.name for p in out.iterdir()) == sorted([".campaign.lock", "campaign.json", "campaign.log",
+                                                            *(spec.name for spec in specs)])
 
 
 # --------------------------------------------------------------------------------------------

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+from in_process import run_in_process
 
 from yafs_safetail.methods.safetail.presets import PAPER_LEARNING_RATES, get_preset
 from yafs_safetail.runs.learning_rate import RATE_GRID, choose
@@ -39,10 +40,12 @@ def test_the_shipped_rates_are_from_the_grid_and_used_by_paper_only():
 
 def test_script_on_a_tiny_budget_scores_every_rate(tmp_path):
     out = tmp_path / "lr"
-    done = subprocess.run([sys.executable, str(SCRIPT), "--uc", "1", "--seeds", "1000",
-                           "--rates", "1e-3,1e-5", "--steps-scale", "0.02", "--out", str(out),
-                           "--quiet"],
-                          capture_output=True, text=True, cwd=REPOSITORY, timeout=900)
+    from yafs_safetail.commands import choose_learning_rate
+
+    # In this process (tests/in_process.py: TensorFlow imported once); bad input below runs
+    # the script itself.
+    done = run_in_process(choose_learning_rate.main, "--uc", "1", "--seeds", "1000", "--rates", "1e-3,1e-5",
+                          "--steps-scale", "0.02", "--out", out, "--quiet")
     assert done.returncode == 0, done.stderr[-2000:]
     table = pd.read_csv(out / "learning_rates.csv")
     assert sorted(table["rate"]) == [1e-5, 1e-3] and table["reward"].notna().all()

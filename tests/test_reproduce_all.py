@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from in_process import Done, run_in_process
 
 from yafs_safetail.logs import RUN_LOG_FILE
 
@@ -24,6 +25,14 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
                           cwd=REPOSITORY, timeout=900)
 
 
+def _run_here(*args: str) -> Done:
+    """The command in this process, for checks of what a successful one writes
+    (tests/in_process.py: TensorFlow imported once)."""
+    from yafs_safetail.commands import reproduce_all
+
+    return run_in_process(reproduce_all.main, *args)
+
+
 TINY_ARGS = ("--uc", "1", "--seeds", "0,1", "--steps-scale", "0.013", "--no-figures")
 
 
@@ -31,7 +40,7 @@ TINY_ARGS = ("--uc", "1", "--seeds", "0,1", "--steps-scale", "0.013", "--no-figu
 def uncut(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two seeds of use case 1, run without interruption."""
     out = tmp_path_factory.mktemp("reproduce") / "rep"
-    done = _run(*TINY_ARGS, "--out", str(out))
+    done = _run_here(*TINY_ARGS, "--out", str(out))
     assert done.returncode == 0, done.stderr[-2000:]
     return out
 
@@ -91,8 +100,8 @@ def test_unknown_use_case_and_preset_and_repeated_seeds_are_one_line_errors(tmp_
 
 def test_target_compute_and_learning_rate_reach_every_run(tmp_path: Path) -> None:
     out = tmp_path / "rep"
-    done = _run("--uc", "3", "--seeds", "0", "--steps-scale", "0.013", "--no-figures",
-                "--target-compute", "trace_median", "--learning-rate", "0.001", "--out", str(out))
+    done = _run_here("--uc", "3", "--seeds", "0", "--steps-scale", "0.013", "--no-figures",
+                     "--target-compute", "trace_median", "--learning-rate", "0.001", "--out", str(out))
     assert done.returncode == 0, done.stderr[-2000:]
     run = json.loads((out / "uc3-paper" / "seed0" / "run.json").read_text())
     assert run["world"]["name"] == "calibrated" and run["world"]["target_compute"] == "trace_median"

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_run_safety import one_error_line, run, snapshot, start, wait_for
+from test_run_usecase import run_here
 
 from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
 from yafs_safetail.runs import checkpoint as checkpoint_module
@@ -30,7 +31,7 @@ def results_of(folder: Path) -> dict[str, bytes]:
 @pytest.fixture(scope="module")
 def uninterrupted(tmp_path_factory) -> dict[str, bytes]:
     out = tmp_path_factory.mktemp("uninterrupted") / "run"
-    done = run("--uc", "1", "--out", out, *SMALL)
+    done = run_here("--uc", "1", "--out", out, *SMALL)
     assert done.returncode == 0, done.stderr
     assert not checkpoint_folder(out).exists()  # gone once the results are in place
     return results_of(out)
@@ -49,7 +50,8 @@ def test_sigterm_mid_training_then_resume_gives_the_uninterrupted_files(tmp_path
     last = stderr.strip().splitlines()[-1]
     assert last.startswith("error: terminated") and "--resume" in last, last
     assert not out.exists() and saved.is_file()
-    done = run("--uc", "1", "--out", out, *SMALL, "--checkpoint-every-s", "0", "--resume")
+    # The same command again with --resume (in this process: only the stop needs a subprocess).
+    done = run_here("--uc", "1", "--out", out, *SMALL, "--checkpoint-every-s", "0", "--resume")
     assert done.returncode == 0, done.stderr
     assert results_of(out) == uninterrupted
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_run_usecase import earlier_results
+from test_run_usecase import earlier_results, run_here
 
 from yafs_safetail.runs.experiment import REPOSITORY
 from yafs_safetail.runs.output import OutputError, check_target, is_results_folder, refuse_protected
@@ -121,14 +121,14 @@ def test_a_folder_that_is_not_a_results_folder_is_never_written(tmp_path):
 
 def test_an_earlier_run_is_replaced_only_with_overwrite(tmp_path):
     out = tmp_path / "run"
-    first = run("--uc", "1", "--seed", "1", "--out", out, *TINY)
+    first = run_here("--uc", "1", "--seed", "1", "--out", out, *TINY)  # (in this process: faster)
     assert first.returncode == 0, first.stderr
     assert is_results_folder(out)
     kept = snapshot(out)
     again = run("--uc", "1", "--seed", "2", "--out", out, *TINY)
     one_error_line(again, "holds an earlier run", "--overwrite")
     assert snapshot(out) == kept
-    replaced = run("--uc", "1", "--seed", "2", "--out", out, *TINY, "--overwrite")
+    replaced = run_here("--uc", "1", "--seed", "2", "--out", out, *TINY, "--overwrite")
     assert replaced.returncode == 0, replaced.stderr
     assert snapshot(out) != kept and '"seed": 2' in (out / "run.json").read_text()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no lock, no temporary folder
@@ -271,7 +271,7 @@ def test_a_default_budget_gives_no_warning(caplog):
 
 def test_bad_policy_files_and_slow_links_are_one_line_errors(tmp_path):
     trained = tmp_path / "trained"
-    assert run("--uc", "1", "--out", trained, *TINY).returncode == 0
+    assert run_here("--uc", "1", "--out", trained, *TINY).returncode == 0
     policy = trained / "policy.keras"
     truncated = tmp_path / "truncated.keras"
     truncated.write_bytes(policy.read_bytes()[:20_000])
@@ -303,7 +303,7 @@ def test_only_this_tools_files_are_ever_removed(tmp_path):
     lookalike = tmp_path / ".run.partial-mine"
     lookalike.mkdir()
     (lookalike / "data.txt").write_text("keep\n")
-    done = run("--uc", "1", "--out", tmp_path / "run", *TINY)
+    done = run_here("--uc", "1", "--out", tmp_path / "run", *TINY)
     assert done.returncode == 0, done.stderr
     assert (lookalike / "data.txt").read_text() == "keep\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == [".run.partial-mine", "run"]

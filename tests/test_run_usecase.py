@@ -1,8 +1,9 @@
-"""experiments/run_usecase.py as users run it: a subprocess, tiny budgets, its folder and errors.
+"""experiments/run_usecase.py as users run it: tiny budgets, its folder and errors.
 
-Successful runs import TensorFlow (a few seconds each), so they are few and small; bad input
-fails before TensorFlow is imported and must end in exactly one ``error:`` line on stderr,
-exit code 2, no traceback, and no change to an earlier results folder at ``--out``.
+Bad input fails before TensorFlow is imported and must end in exactly one ``error:`` line on
+stderr, exit code 2, no traceback, and no change to an earlier results folder at ``--out``; it
+and the first run (an empty stderr) run in a subprocess. Checks of other successful runs'
+files run the command in this process (``run_here``), which imports TensorFlow only once.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import Done, run_in_process
 
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import world_settings
@@ -38,6 +40,13 @@ def run_script(*args: str | Path, cwd: Path = REPOSITORY) -> subprocess.Complete
     env = {k: v for k, v in os.environ.items() if k != "YAFS_SAFETAIL_DEBUG"}
     return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=600)
+
+
+def run_here(*args: str | Path) -> Done:
+    """The command in this process (tests/in_process.py), for checks of a run's files."""
+    from yafs_safetail.commands import run_usecase
+
+    return run_in_process(run_usecase.main, *args)
 
 
 def earlier_results(folder: Path) -> dict[str, bytes]:
@@ -113,7 +122,7 @@ def test_uc1_writes_the_whole_folder(uc1_run):
 
 def test_saved_policy_is_evaluated_without_training(uc1_run, tmp_path):
     out = tmp_path / "eval"
-    done = run_script("--uc", "1", "--seed", "4", "--policy", uc1_run / POLICY_FILE, "--out", out,
+    done = run_here("--uc", "1", "--seed", "4", "--policy", uc1_run / POLICY_FILE, "--out", out,
                       "--quiet", "--no-figures", "--no-yafs-csv", *TINY)
     assert done.returncode == 0, done.stderr
     requests = results.read_requests_csv(out / "requests.csv")
@@ -132,7 +141,7 @@ def test_saved_policy_is_evaluated_without_training(uc1_run, tmp_path):
 
 def test_users_methods_join_the_comparison_on_the_same_requests(uc1_run, tmp_path):
     out = tmp_path / "mine"
-    done = run_script("--uc", "1", "--seed", "4", "--policy", uc1_run / POLICY_FILE, "--out", out,
+    done = run_here("--uc", "1", "--seed", "4", "--policy", uc1_run / POLICY_FILE, "--out", out,
                       "--quiet", "--no-yafs-csv", "--method", f"{EXAMPLE}:NearestFree",
                       "--method", f"Nearest again={EXAMPLE}:NearestFree", *TINY)
     assert done.returncode == 0, done.stderr
@@ -175,7 +184,7 @@ def test_policy_for_another_number_of_servers_is_refused(uc1_run, tmp_path):
 @pytest.mark.parametrize("uc", [2, 3])
 def test_other_use_cases_run(tmp_path, uc):
     out = tmp_path / f"uc{uc}"
-    done = run_script("--uc", uc, "--out", out, "--quiet", "--no-figures",  # YAFS CSVs: off by default
+    done = run_here("--uc", uc, "--out", out, "--quiet", "--no-figures",  # YAFS CSVs: off by default
                       "--steps-scale", "0.025", "--redundancy", "1", "--workers", uc - 1)
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
@@ -314,9 +323,9 @@ def test_output_under_a_read_only_folder(tmp_path):
     assert snapshot(locked / "run") == kept
 
 
-def test_target_latency_and_load_level_options(tmp_path):
+def test_target_latency_and_load_level_options(tmp_path, uc1_default_run):
     out = tmp_path / "fixed"
-    done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
+    done = run_here("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
                       "--target-latency-s", "0.75", "--load-peak-users", "0")
     assert done.returncode == 0, done.stderr
     rows = pd.read_csv(out / "requests.csv")
@@ -330,7 +339,7 @@ def test_target_latency_and_load_level_options(tmp_path):
     assert run["world_overrides"] == {"target_latency_s": 0.75, "load_peak_users": 0.0}
     assert "**Closeness to the paper: not scored.**" in (out / "summary.md").read_text()
     # The default: Eq. 4 per request (targets vary) and the preset world's load.
-    default_out = tmp_path_run_default(tmp_path)
+    default_out = uc1_default_run
     default_run = json.loads((default_out / "run.json").read_text())
     assert "world_overrides" not in default_run
     assert default_run["placement"] == "placements/paper_5servers.json"
@@ -347,7 +356,7 @@ def test_target_compute_option_is_recorded_and_changes_only_the_target(tmp_path)
     runs = {}
     for reading in ("request", "trace_median"):
         out = tmp_path / reading
-        done = run_script("--uc", "3", "--out", out, "--quiet", "--no-figures", *TINY, "--workers", "1",
+        done = run_here("--uc", "3", "--out", out, "--quiet", "--no-figures", *TINY, "--workers", "1",
                           "--target-compute", reading)
         assert done.returncode == 0, done.stderr
         run = json.loads((out / "run.json").read_text())
@@ -364,16 +373,18 @@ def test_target_compute_option_is_recorded_and_changes_only_the_target(tmp_path)
                                   trace.loc[baselines, ["method", "request_id", "latency_s"]])
 
 
-def tmp_path_run_default(tmp_path: Path) -> Path:
-    out = tmp_path / "default"
-    done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY)
+@pytest.fixture(scope="module")
+def uc1_default_run(tmp_path_factory) -> Path:
+    """UC1 with every option at its default (the tests of options compare with it)."""
+    out = tmp_path_factory.mktemp("default") / "run"
+    done = run_here("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY)
     assert done.returncode == 0, done.stderr
     return out
 
 
-def test_learning_rate_option_trains_safetail_at_that_rate_and_says_so(tmp_path):
+def test_learning_rate_option_trains_safetail_at_that_rate_and_says_so(tmp_path, uc1_default_run):
     out = tmp_path / "faster"
-    done = run_script("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
+    done = run_here("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
                       "--learning-rate", "0.0003")
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
@@ -381,7 +392,7 @@ def test_learning_rate_option_trains_safetail_at_that_rate_and_says_so(tmp_path)
     assert run["preset"] == "paper"
     title = (out / "summary.md").read_text().splitlines()[0]
     assert "preset `paper`, learning rate 0.0003 (--learning-rate), seed 0" in title
-    default = tmp_path_run_default(tmp_path)
+    default = uc1_default_run
     preset_run = json.loads((default / "run.json").read_text())
     assert "learning_rate_override" not in preset_run
     assert preset_run["learner"]["learning_rate"] != 0.0003
