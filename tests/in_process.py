@@ -54,3 +54,10 @@ def run_in_process(main: Callable[[Sequence[str] | None], int | None], *args: st
             handler.close()
         package.setLevel(previous_package_level)
     return Done(code, out.getvalue(), err.getvalue())
+
+
+def run_usecase_here(*args: str | Path) -> Done:
+    """``experiments/run_usecase.py ARGS`` in this process."""
+    from yafs_safetail.commands import run_usecase
+
+    return run_in_process(run_usecase.main, *args)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from in_process import Done, run_in_process
+from in_process import run_usecase_here
 
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import LANDED
@@ -173,13 +173,6 @@ def _run_usecase(*args: str, out: Path) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=900, cwd=ROOT, check=False)
 
 
-def _run_here(*args: str, out: Path) -> Done:
-    """A successful run's command in this process (tests/in_process.py: TensorFlow imported once)."""
-    from yafs_safetail.commands import run_usecase
-
-    return run_in_process(run_usecase.main, *args, "--out", out)
-
-
 @pytest.mark.parametrize(("content", "expected"), [
     ("server,down_s\n0,1\n", "missing column(s) up_s"),
     ("server,down_s,up_s\n0,10,5\n", "row 2: field up_s: must be after down_s"),
@@ -199,8 +192,8 @@ def test_a_bad_down_intervals_file_is_one_line(tmp_path, content, expected):
 
 def test_run_usecase_with_failures_writes_end_reason_and_energy(tmp_path):
     out = tmp_path / "out"
-    done = _run_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
-                        "--no-figures", "--quiet", out=out)
+    done = run_usecase_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
+                            "--no-figures", "--quiet", "--out", out)
     assert done.returncode == 0, done.stderr[-2000:]
     header = (out / "requests.csv").read_text().splitlines()[0].split(",")
     assert header[-7:] == ["epsilon", "end_reason", "lost", "energy_j", "server_energy_j",

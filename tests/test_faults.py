@@ -205,14 +205,22 @@ def test_overwrite_on_a_full_disk_keeps_the_earlier_run_byte_for_byte(small_disk
 _GRID = CAMPAIGN_GRID
 
 
+def _grid_in(cwd: Path) -> Path:
+    """``cwd/grid.toml``, the campaign's grid (written if it is not there yet)."""
+    cwd.mkdir(exist_ok=True)
+    grid = cwd / "grid.toml"
+    if not grid.is_file():
+        grid.write_text(_GRID)
+    return grid
+
+
 def _campaign(cwd: Path, *extra: str, env: dict[str, str] | None = None):
     """``yafs-safetail campaign`` in ``cwd`` with relative paths, so that every run.json
     records the same command whichever folder the campaign ran in."""
     import subprocess
     import sys
 
-    cwd.mkdir(exist_ok=True)
-    (cwd / "grid.toml").write_text(_GRID)
+    _grid_in(cwd)
     return subprocess.run([sys.executable, "-m", "yafs_safetail.cli", "campaign", "--grid", "grid.toml",
                            "--out", "campaign", "--workers", "2", "--quiet", *extra],
                           cwd=cwd, capture_output=True, text=True, timeout=900,
@@ -226,9 +234,7 @@ def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_compl
     from yafs_safetail.runs.grid import load_grid
 
     out = tmp_path / "killed" / "campaign"
-    (tmp_path / "killed").mkdir()
-    (tmp_path / "killed" / "grid.toml").write_text(_GRID)
-    specs = load_grid(tmp_path / "killed" / "grid.toml")
+    specs = load_grid(_grid_in(tmp_path / "killed"))
     victim = specs[1]
 
     # The worker running the second run kills itself with SIGKILL just before publishing it.

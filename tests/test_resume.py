@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from in_process import run_usecase_here as run_here
 from test_run_safety import one_error_line, run, snapshot, start, wait_for
-from test_run_usecase import run_here
 
 from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
 from yafs_safetail.runs import checkpoint as checkpoint_module

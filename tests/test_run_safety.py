@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_run_usecase import earlier_results, run_here
+from in_process import run_usecase_here as run_here
+from test_run_usecase import earlier_results
 
 from yafs_safetail.runs.experiment import REPOSITORY
 from yafs_safetail.runs.output import OutputError, check_target, is_results_folder, refuse_protected

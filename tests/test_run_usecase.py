@@ -3,7 +3,7 @@
 Bad input fails before TensorFlow is imported and must end in exactly one ``error:`` line on
 stderr, exit code 2, no traceback, and no change to an earlier results folder at ``--out``; it
 and the first run (an empty stderr) run in a subprocess. Checks of other successful runs'
-files run the command in this process (``run_here``), which imports TensorFlow only once.
+files run the command in this process (``tests/in_process.py``), which imports TensorFlow only once.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from in_process import Done, run_in_process
+from in_process import run_usecase_here as run_here
 
 from yafs_safetail import results
 from yafs_safetail.edge.calibration import world_settings
@@ -40,13 +40,6 @@ def run_script(*args: str | Path, cwd: Path = REPOSITORY) -> subprocess.Complete
     env = {k: v for k, v in os.environ.items() if k != "YAFS_SAFETAIL_DEBUG"}
     return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=600)
-
-
-def run_here(*args: str | Path) -> Done:
-    """The command in this process (tests/in_process.py), for checks of a run's files."""
-    from yafs_safetail.commands import run_usecase
-
-    return run_in_process(run_usecase.main, *args)
 
 
 def earlier_results(folder: Path) -> dict[str, bytes]:

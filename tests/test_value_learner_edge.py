@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from in_process import Done, run_in_process
+from in_process import run_usecase_here
 
 from yafs_safetail import results
 from yafs_safetail.edge.observation import Observation
@@ -96,13 +96,6 @@ def _run_usecase(*args: str, out: Path) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=900, cwd=ROOT, check=False)
 
 
-def _run_here(*args: str, out: Path) -> Done:
-    """A successful run's command in this process (tests/in_process.py: TensorFlow imported once)."""
-    from yafs_safetail.commands import run_usecase
-
-    return run_in_process(run_usecase.main, *args, "--out", out)
-
-
 @pytest.mark.parametrize(("args", "expected"), [
     (("--energy-price-per-j", "-0.01"), "--energy-price-per-j: expected a non-negative number"),
     (("--learner", "q-table"), "--learner: invalid choice: 'q-table'"),
@@ -119,8 +112,8 @@ def test_a_bad_learner_option_is_one_line(tmp_path, args, expected):
 
 def test_run_usecase_with_the_value_learner_and_a_price(tmp_path):
     out = tmp_path / "out"
-    done = _run_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
-                        "--learner", "value", "--energy-price-per-j", "0.05", "--no-figures", "--quiet", out=out)
+    done = run_usecase_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
+                            "--learner", "value", "--energy-price-per-j", "0.05", "--no-figures", "--quiet", "--out", out)
     assert done.returncode == 0, done.stderr[-2000:]
     for name in ("requests.csv", "summary.csv", "summary.md", "run.json", "policy.keras"):
         assert (out / name).is_file(), name
@@ -130,8 +123,8 @@ def test_run_usecase_with_the_value_learner_and_a_price(tmp_path):
     # Evaluated again from its file, it makes the same greedy choices with the same reward: a
     # saved value network is read with the value learner's own reward, not Eq. 5.
     again = tmp_path / "again"
-    done = _run_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
-                        "--policy", str(out / "policy.keras"), "--no-figures", "--quiet", out=again)
+    done = run_usecase_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
+                            "--policy", str(out / "policy.keras"), "--no-figures", "--quiet", "--out", again)
     assert done.returncode == 0, done.stderr[-2000:]
     trained, loaded = (results.read_requests_csv(folder) for folder in (out, again))
     columns = ["step", "servers", "reward"]
