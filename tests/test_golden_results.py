@@ -4,33 +4,44 @@ was recorded (issue 29: a restructure must leave every results file byte-identic
 Each scenario runs an entry point on a small budget and hashes its results files. What
 legitimately differs between two checkouts or two folders is taken out before hashing: the
 run's own command line and output path, the checkout's absolute path, and campaign run ids
-(they hash the code version, which every commit changes). ``run.log``, campaign logs and figures
-are not compared (times, library versions).
+(they hash the code version, which every commit changes), and the library versions run.json
+records (``library_versions``). ``run.log``, campaign logs and figures are not compared (times,
+library versions). A saved policy (``.keras``) is compared by what it holds, its configuration
+and every weight bit for bit, not by the bytes of its zip, whose ``metadata.json`` names the
+Keras version that wrote it.
 
-When a change is *meant* to change results, rerun with ``YAFS_SAFETAIL_UPDATE_GOLDEN=1`` to
-rewrite ``tests/golden/results.json`` and say why in the commit. TensorFlow's CPU kernels may
-round differently on another processor family; a mismatch in SafeTail's files alone, with every
-baseline's row unchanged, points there (the message lists the files).
+The golden files were recorded with the lock's library versions (``constraints.txt``, installed
+by the README's set-up command and ``.ci/run``): another TensorFlow or Keras may train another
+network, and then SafeTail's files differ while every baseline's row stays (docs/results.md,
+"Versions"); a run made without the lock says so in its run.json and summary.md. When a change
+is *meant* to change results, rerun with ``YAFS_SAFETAIL_UPDATE_GOLDEN=1`` to rewrite
+``tests/golden/results.json`` and say why in the commit.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import re
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
+import h5py
+import numpy as np
 import pytest
+
+from yafs_safetail import versions
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 GOLDEN_FILE = REPOSITORY / "tests" / "golden" / "results.json"
 UPDATE = os.environ.get("YAFS_SAFETAIL_UPDATE_GOLDEN") == "1"
 #: Keys of a JSON results file that name where or when it was made, not what it found.
 VOLATILE_KEYS = frozenset({"command", "load_runs", "campaign_run_id", "code_version", "created",
-                           "finished", "wall_s"})
+                           "finished", "wall_s", "library_versions"})
 #: Files never compared: times and library versions.
 SKIPPED_NAMES = frozenset({"run.log", "campaign.log", "campaign.json", ".campaign.lock"})
 SKIPPED_SUFFIXES = frozenset({".png", ".pdf"})
@@ -55,8 +66,28 @@ preset = ["tuned", "paper-literal"]
 """
 
 
+def _policy_content(path: Path) -> bytes:
+    """What a saved policy holds: its configuration (keys sorted) and, for every weight array
+    in file order, its name, dtype, shape and bytes. Not the zip's ``metadata.json`` (the Keras
+    version and save date) nor the HDF5 file's layout."""
+    with zipfile.ZipFile(path) as archive:
+        parts = [json.dumps(json.loads(archive.read("config.json")), sort_keys=True).encode()]
+        weights = io.BytesIO(archive.read("model.weights.h5"))
+    with h5py.File(weights, "r") as store:
+        arrays: list[tuple[str, h5py.Dataset]] = []
+        store.visititems(lambda name, item: arrays.append((name, item))
+                         if isinstance(item, h5py.Dataset) else None)
+        for name, array in arrays:
+            values = array[()]
+            parts.append(f"{name} {values.dtype.str} {values.shape}".encode())
+            parts.append(values.tobytes())
+    return b"\0".join(parts)
+
+
 def _normalised(path: Path, out: Path) -> bytes:
     """The bytes of a results file with its place of making taken out."""
+    if path.suffix == ".keras":
+        return _policy_content(path)
     data = path.read_bytes()
     if path.suffix in (".json", ".md", ".csv", ".tex"):
         text = data.decode("utf-8").replace(str(out), "<OUT>").replace(str(REPOSITORY), "<REPO>")
@@ -107,8 +138,12 @@ def _check(name: str, found: dict[str, str]) -> None:
     assert name in golden, f"{GOLDEN_FILE}: no golden for {name!r}; record it (module docstring)"
     expected = golden[name]
     changed = sorted(k for k in expected.keys() | found.keys() if expected.get(k) != found.get(k))
+    differ = versions.differences_from_lock(versions.installed_versions(), versions.locked_versions())
+    not_locked = ("; not the lock's library versions, with which the golden was recorded: "
+                  + ", ".join(f"{k} {v['installed']} (lock {v['locked']})" for k, v in sorted(differ.items()))
+                  if differ else "")
     assert not changed, (f"{name}: results files differ from the golden ({GOLDEN_FILE.name}): "
-                         f"{', '.join(changed)}")
+                         f"{', '.join(changed)}{not_locked}")
 
 
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
@@ -150,3 +185,27 @@ def test_the_normaliser_keeps_results_and_drops_only_the_place_of_making(tmp_pat
     (out / "seed0-paper-0f7ed8b61e4c").mkdir()
     (out / "seed0-paper-0f7ed8b61e4c" / "summary.csv").write_text("m\n")
     assert "seed0-paper/summary.csv" in digests(out)  # the run id is not a result
+
+
+def _policy_zip(path: Path, keras_version: str, weight: float) -> None:
+    """A file shaped as Keras saves a policy: metadata, configuration and HDF5 weights."""
+    weights = io.BytesIO()
+    with h5py.File(weights, "w") as store:
+        store.create_dataset("layers/dense/vars/0", data=[[weight, 2.0]], dtype="float32")
+        store.create_dataset("layers/dense/vars/1", data=[0.5], dtype="float32")
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("metadata.json", json.dumps({"keras_version": keras_version}))
+        archive.writestr("config.json", json.dumps({"name": "net", "units": 2}))
+        archive.writestr("model.weights.h5", weights.getvalue())
+
+
+def test_a_policy_is_compared_by_its_weights_not_by_the_keras_version(tmp_path):
+    out = tmp_path / "x"
+    out.mkdir()
+    _policy_zip(out / "policy.keras", "3.15.1", 1.0)
+    first = digests(out)["policy.keras"]
+    _policy_zip(out / "policy.keras", "3.12.0", 1.0)
+    assert digests(out)["policy.keras"] == first  # another Keras wrote the same network
+    # One weight's last bit: float32 1.0 -> the next float32 up.
+    _policy_zip(out / "policy.keras", "3.15.1", float(np.nextafter(np.float32(1.0), np.float32(2.0))))
+    assert digests(out)["policy.keras"] != first

@@ -32,6 +32,11 @@ DATA_FILES: dict[str, tuple[str, ...]] = {
     "placements": ("*.json",),
     "traces": ("*.csv", "README.md", "models/*.npz", "models/*.json", "models/*.keras"),
 }
+#: The lock: the exact library versions the published numbers and the golden files need
+#: (docs/results.md, "Versions"). At the checkout's root, where ``pip install -c`` takes it; a
+#: wheel carries a copy (setup.py), so an installed run can say when its versions differ.
+LOCK_FILE_NAME = "constraints.txt"
+LOCK_FILE = DATA_ROOT / LOCK_FILE_NAME
 
 #: The paper's setting: five edge servers (§V-A).
 DEFAULT_TOPOLOGY = DATA_ROOT / "topologies" / "paper_5servers.json"

@@ -52,6 +52,7 @@ from yafs_safetail.contention.sweep_config import ContentionSweep, SweepConfig
 from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.runs.config import add_options, config_from_args
 from yafs_safetail.runs.engine_options import add_engine_options, engine_free_command
+from yafs_safetail.versions import run_json_fields
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -183,7 +184,7 @@ def sweep_run_json(args: argparse.Namespace, config: ContentionSweep, command: s
     """A sweep folder's run.json: the command, the axis's settings (``axis``, in order after the
     use case and users), the world's and the methods', and each point's run id."""
     return {
-        "package_version": __version__, "command": command, "kind": kind,
+        "package_version": __version__, **run_json_fields(), "command": command, "kind": kind,
         "use_case": args.uc, "users": args.users, **axis, "seed": config.base.seed,
         "steps_scale": config.steps_scale, "target": config.target,
         "safetails": [asdict(variant) for variant in config.safetails],
@@ -269,7 +270,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                           f"{args.servers}, {args.links} links, seeds {', '.join(map(str, seed_list))})\n\n"
                           + safetail_lines(config) + f"`{command}`\n\n" + comparison)
         write_text_atomic(out / "run.json", json.dumps({
-            "package_version": __version__, "command": command, "kind": SEEDS_KIND, "seeds": list(seed_list),
+            "package_version": __version__, **run_json_fields(), "command": command, "kind": SEEDS_KIND,
+            "seeds": list(seed_list),
             "seed_folders": {str(seed): f"seed-{seed}" for seed in seed_list}}, indent=1) + "\n")
         print(comparison)
         print(f"written: {out / SEEDS_FILE}")

@@ -61,6 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from yafs_safetail.contention.mechanism import measure_training, mechanism_figure
     from yafs_safetail.results.files import write_text_atomic
     from yafs_safetail.runs.output import MECHANISM_FILE, StagedOutput
+    from yafs_safetail.versions import run_json_fields
 
     # The load sweep's world: the same defaults as experiments/load_sweep.py (queues, cancel on
     # reply, shared links, no background tenants).
@@ -75,7 +76,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         write_text_atomic(staging / MECHANISM_FILE, table.to_csv(index=False, float_format="%.6g"))
         mechanism_figure(table, staging / "mechanism.png")
         write_text_atomic(staging / "run.json", json.dumps({
-            "package_version": __version__, "command": command, "kind": MECHANISM_KIND, "use_case": args.uc,
+            "package_version": __version__, **run_json_fields(), "command": command, "kind": MECHANISM_KIND,
+            "use_case": args.uc,
             "users": args.users, "seed": args.seed, "loads": list(config.loads), "steps_scale": config.steps_scale,
             "target": config.target, "windows": args.windows,
             "safetails": [asdict(variant) for variant in config.safetails]}, indent=1) + "\n")

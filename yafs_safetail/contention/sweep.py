@@ -140,6 +140,7 @@ def run_sweep_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: 
     into ``out_dir``: its ``sweep.csv`` rows, a ``run.json`` recording the run id and a
     ``run.log`` (staged; nothing is lost if it stops half way)."""
     from yafs_safetail import __version__
+    from yafs_safetail.versions import run_json_fields
 
     if spec.kind not in POINT_KINDS:
         raise ContentionError(f"run {spec.name}: kind {spec.kind!r} is not a sweep point; "
@@ -156,6 +157,6 @@ def run_sweep_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: 
             frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
             write_text_atomic(staging / "run.json", json.dumps({
                 "package_version": __version__, "campaign_run_id": spec.run_id, "kind": spec.kind,
-                "command": command, "settings": dict(spec.settings)}, indent=1, sort_keys=True) + "\n")
+                "command": command, "settings": dict(spec.settings), **run_json_fields()}, indent=1, sort_keys=True) + "\n")
         output.publish()
     return out_dir

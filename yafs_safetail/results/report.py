@@ -35,6 +35,7 @@ from yafs_safetail.results.run_json import (
     write_run_json,
 )
 from yafs_safetail.results.stats import summarize
+from yafs_safetail.versions import NOT_THE_LOCK_KEY, not_the_lock_note
 
 #: Where a reader finds the paper's stated numbers and how they are read, as results files
 #: cite it: the paper itself and a file of the project (every reader has both).
@@ -138,6 +139,8 @@ def _heading_lines(summary: pd.DataFrame, run: RunMetadata | None, differences: 
     else:
         title = "# SafeTail results (no run.json: use case, preset and seed unknown)"
     lines = [title, ""]
+    if run is not None and (differ := run.extra.get(NOT_THE_LOCK_KEY)):
+        lines += [not_the_lock_note(differ), ""]
     lines += _thin_lines(summary)
     if differences:
         lines += [

@@ -46,7 +46,7 @@ import numpy as np
 import pandas as pd
 
 import yafs_safetail
-from yafs_safetail import results
+from yafs_safetail import results, versions
 from yafs_safetail.edge.calibration import (
     CALIBRATED_PARAMETERS,
     CALIBRATED_READINGS,
@@ -377,6 +377,7 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
             "date": datetime.date.today().isoformat(),
             "command": config.command,
             "package_version": yafs_safetail.__version__,
+            **versions.run_json_fields(),
             "git_commit": _git_commit(),
             "wall_s": round(time.perf_counter() - started, 1),
         },

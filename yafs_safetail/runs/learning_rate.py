@@ -25,7 +25,7 @@ from typing import Any
 import pandas as pd
 
 import yafs_safetail
-from yafs_safetail import results
+from yafs_safetail import results, versions
 from yafs_safetail.defaults import LEARNING_RATE_GRID
 from yafs_safetail.edge.calibration import seed_set
 from yafs_safetail.edge.published import USE_CASES as PUBLISHED_USE_CASES
@@ -133,6 +133,7 @@ def choose_learning_rates(config: LearningRateConfig,
             "date": datetime.date.today().isoformat(),
             "command": config.command,
             "package_version": yafs_safetail.__version__,
+            **versions.run_json_fields(),
             "wall_s": round(time.perf_counter() - started, 1),
         },
     }

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yafs_safetail
-from yafs_safetail import results
+from yafs_safetail import results, versions
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
@@ -99,6 +99,8 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
         "world": test_world.settings.to_dict(),
         **failures_and_energy(test_world),
         results.PLACEMENT_KEY: recorded_path(Path(config.placement)),
+        # The libraries' versions, and a note when they are not the lock's (summary.md says it).
+        **versions.run_json_fields(),
         # Only when set, as learning_rate_override: summary.md scores no closeness to the
         # paper in a world the run's options changed.
         **({results.WORLD_OVERRIDES_KEY: dict(inputs.world_overrides)}
