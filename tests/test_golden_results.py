@@ -3,10 +3,10 @@ was recorded (issue 29: a restructure must leave every results file byte-identic
 
 Each scenario runs an entry point on a small budget and hashes its results files. What
 legitimately differs between two checkouts or two folders is taken out before hashing: the
-run's own command line and output path, the checkout's absolute path, and campaign run ids
-(they hash the code version, which every commit changes), and the library versions run.json
-records (``library_versions``). ``run.log``, campaign logs and figures are not compared (times,
-library versions). A saved policy (``.keras``) is compared by what it holds, its configuration
+run's own command line and output path, the checkout's absolute path, campaign run ids (they
+hash the code version, which every commit changes), and the library versions and processor that
+run.json records (``library_versions``, ``cpu``). ``run.log``, campaign logs and figures are not
+compared (times, library versions). A saved policy (``.keras``) is compared by what it holds, its configuration
 and every weight bit for bit, not by the bytes of its zip, whose ``metadata.json`` names the
 Keras version that wrote it.
 
@@ -41,7 +41,7 @@ GOLDEN_FILE = REPOSITORY / "tests" / "golden" / "results.json"
 UPDATE = os.environ.get("YAFS_SAFETAIL_UPDATE_GOLDEN") == "1"
 #: Keys of a JSON results file that name where or when it was made, not what it found.
 VOLATILE_KEYS = frozenset({"command", "load_runs", "campaign_run_id", "code_version", "created",
-                           "finished", "wall_s", "library_versions"})
+                           "finished", "wall_s", "library_versions", "cpu"})
 #: Files never compared: times and library versions.
 SKIPPED_NAMES = frozenset({"run.log", "campaign.log", "campaign.json", ".campaign.lock"})
 SKIPPED_SUFFIXES = frozenset({".png", ".pdf"})

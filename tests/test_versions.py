@@ -80,3 +80,14 @@ def test_run_json_records_versions_and_a_note_only_off_the_lock(tmp_path, lock_m
     fields = json.loads(json.dumps(versions.run_json_fields(lock)))
     assert fields[versions.LIBRARY_VERSIONS_KEY]["numpy"] == installed["numpy"]
     assert (versions.NOT_THE_LOCK_KEY in fields) is not lock_matches
+
+
+def test_the_cpu_is_recorded_with_the_flags_that_pick_tensorflows_kernels(tmp_path, monkeypatch):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor : 0\nmodel name : Some CPU\nflags : fpu avx2 fma avx512f sse4_2\n"
+                       "processor : 1\nmodel name : Some CPU\nflags : fpu\n")
+    monkeypatch.setenv("ONEDNN_MAX_CPU_ISA", "AVX2")
+    cpu = versions.cpu_fields(cpuinfo)
+    assert cpu["model"] == "Some CPU" and cpu["flags"] == ["avx2", "fma", "avx512f"]
+    assert cpu["onednn_max_cpu_isa"] == "AVX2"
+    assert versions.cpu_fields(tmp_path / "none")["flags"] == []

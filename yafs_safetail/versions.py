@@ -12,6 +12,8 @@ Standard library only: the sweeps and the light command paths may import it.
 
 from __future__ import annotations
 
+import os
+import platform
 import re
 from importlib import metadata
 from pathlib import Path
@@ -28,6 +30,12 @@ RESULT_PACKAGES: tuple[str, ...] = ("numpy", "scipy", "pandas", "simpy", "networ
 LIBRARY_VERSIONS_KEY = "library_versions"
 #: ``run.json`` key, only when some of those differ from the lock: name -> {installed, locked}.
 NOT_THE_LOCK_KEY = "library_versions_not_the_lock"
+#: ``run.json`` key: the processor, which matters too. TensorFlow's CPU kernels pick their code
+#: by the instruction set at run time, so SafeTail's network can differ between processors with
+#: the same libraries (docs/results.md, "Versions"); NumPy's draws, and so the baselines, do not.
+CPU_KEY = "cpu"
+#: The instruction-set extensions whose presence changes which kernels TensorFlow (oneDNN) runs.
+CPU_FLAGS = ("avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "avx_vnni", "amx_tile")
 
 _PIN = re.compile(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==([^\s;#]+)")
 
@@ -68,11 +76,30 @@ def differences_from_lock(installed: dict[str, str | None],
             if canonical(name) in locked and version != locked[canonical(name)]}
 
 
+def cpu_fields(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict[str, object]:
+    """The processor: its architecture, model name and instruction-set extensions of
+    :data:`CPU_FLAGS` (Linux; elsewhere the architecture alone), and a oneDNN cap if set."""
+    model: str | None = None
+    flags: set[str] = set()
+    if cpuinfo.is_file():
+        for line in cpuinfo.read_text(encoding="utf-8", errors="replace").splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and model is None:
+                model = value.strip()
+            elif key.strip() == "flags" and not flags:
+                flags = set(value.split())
+    return {"machine": platform.machine(), "model": model,
+            "flags": [flag for flag in CPU_FLAGS if flag in flags],
+            "onednn_max_cpu_isa": os.environ.get("ONEDNN_MAX_CPU_ISA")}
+
+
 def run_json_fields(lock_file: Path = LOCK_FILE) -> dict[str, object]:
-    """What ``run.json`` records of the libraries: their versions, and those not the lock's."""
+    """What ``run.json`` records of the libraries and the processor: the versions, those not
+    the lock's, and the CPU."""
     installed = installed_versions()
     differ = differences_from_lock(installed, locked_versions(lock_file))
-    return {LIBRARY_VERSIONS_KEY: installed, **({NOT_THE_LOCK_KEY: differ} if differ else {})}
+    return {LIBRARY_VERSIONS_KEY: installed, **({NOT_THE_LOCK_KEY: differ} if differ else {}),
+            CPU_KEY: cpu_fields()}
 
 
 def not_the_lock_note(differ: dict[str, dict[str, str | None]]) -> str:
