@@ -129,8 +129,10 @@ def test_bad_arguments_are_one_line_errors(tmp_path):
 
 
 def test_seed_sets_are_disjoint_and_bad_files_are_one_line(tmp_path):
-    held_out = set(seed_set("held_out")) | set(seed_set("fresh_held_out"))
-    assert not held_out & (set(seed_set("world_calibration")) | set(seed_set("learner_calibration")))
+    held_out = [set(seed_set(name)) for name in ("held_out", "fresh_held_out", "refit_held_out")]
+    assert sum(map(len, held_out)) == len(set().union(*held_out))  # no seed in two held-out sets
+    assert not set().union(*held_out) & (set(seed_set("world_calibration"))
+                                         | set(seed_set("learner_calibration")))
     bad = tmp_path / "sets.json"
     bad.write_text(json.dumps({"held_out": [1, "2"]}))
     with pytest.raises(CalibrationError, match="held_out: expected a list"):
