@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
-from yafs_safetail.cli import EXIT_BAD_INPUT, run_cli
+from yafs_safetail.cli import EXIT_BAD_INPUT, ArgumentParser, run_cli
 from yafs_safetail.edge.scenario import REPOSITORY
 
 
@@ -180,3 +181,43 @@ def test_a_reader_that_goes_away_is_not_an_error(tmp_path):
     assert done.stdout == "line 0\n"
     assert done.stderr == "", done.stderr
     assert done.returncode == 141  # as a tool killed by SIGPIPE: what followed was not done
+
+
+def test_version_is_the_packages(capsys: pytest.CaptureFixture[str]) -> None:
+    from yafs_safetail import __version__
+    from yafs_safetail.cli import main
+
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out == f"yafs-safetail {__version__}\n"
+    with pytest.raises(SystemExit) as done:  # argparse's own exit, as for --help
+        main(["compare", "--version"])
+    assert done.value.code == 0 and capsys.readouterr().out == f"yafs-safetail {__version__}\n"
+
+
+def test_a_tilde_in_any_path_option_is_the_home_folder(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    from yafs_safetail.commands import run_usecase
+    from yafs_safetail.runs.config import ExperimentConfig
+
+    monkeypatch.setenv("HOME", str(tmp_path))
+    # Options declared in runs.config (through add_options) and by hand alike.
+    config: ExperimentConfig = run_usecase.parse_args(
+        ["--uc", "1", "--out", "~/run", "--topology", "~/t.json", "--placement", "~/p.json",
+         "--policy", "~/policy.keras"])
+    assert config.out_dir == tmp_path / "run"
+    assert (config.topology, config.placement, config.policy) == (
+        tmp_path / "t.json", tmp_path / "p.json", tmp_path / "policy.keras")
+    parser = ArgumentParser()
+    parser.add_argument("--grid", type=Path)
+    assert parser.parse_args(["--grid=~/grid.toml"]).grid == tmp_path / "grid.toml"
+
+
+def test_a_tilde_in_a_grid_files_path_is_the_home_folder(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    import shutil
+
+    from yafs_safetail.defaults import DEFAULT_TOPOLOGY
+    from yafs_safetail.runs.grid import expand
+
+    monkeypatch.setenv("HOME", str(tmp_path))
+    shutil.copy(DEFAULT_TOPOLOGY, tmp_path / "t.json")
+    (spec,) = expand({"topology": "~/t.json"}, {"seed": [0]})
+    assert spec.settings["topology"] == str((tmp_path / "t.json").resolve())

@@ -70,3 +70,24 @@ def test_help_and_argument_errors_load_nothing_heavy(case):
     else:  # the one-line error, nothing else
         assert len(lines) == 2 and lines[0].startswith("error: "), done.stderr
 
+
+
+VERSION_CASES = {
+    "console": ["yafs-safetail", "--version"],
+    "run": ["yafs-safetail", "run", "--version"],
+    "sweep": ["yafs-safetail", "sweep", "--version"],
+    "figures": ["yafs-safetail", "figures", "--version"],
+    "script": [RUN_SCRIPT, "--version"],
+}
+
+
+@pytest.mark.parametrize("case", sorted(VERSION_CASES))
+def test_version_answers_with_the_package_version_and_loads_nothing_heavy(case):
+    from yafs_safetail import __version__
+
+    done = subprocess.run([sys.executable, "-c", PROBE, *VERSION_CASES[case]], capture_output=True,
+                          text=True, cwd=REPOSITORY, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout == f"yafs-safetail {__version__}\n"
+    if case != "figures":  # the figures module imports matplotlib at its top, --help or not
+        assert done.stderr.splitlines() == ["loaded: []"], done.stderr[-2000:]

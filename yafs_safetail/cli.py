@@ -17,9 +17,11 @@ import sys
 import threading
 from collections.abc import Callable, Sequence
 from contextvars import ContextVar
+from pathlib import Path
 from types import FrameType
 from typing import Any, NoReturn
 
+from yafs_safetail import __version__
 from yafs_safetail.logs import configure_logging, verbosity_level
 
 EXIT_BAD_INPUT = 2
@@ -44,13 +46,28 @@ class UsageError(ValueError):
 _command_prog: ContextVar[str | None] = ContextVar("yafs_safetail_command_prog", default=None)
 
 
+#: What ``--version`` prints, on every command: the package's version, the one run.json records.
+VERSION_LINE = f"yafs-safetail {__version__}"
+
+
+def user_path(text: str) -> Path:
+    """An argparse type for every path option: ``~`` and ``~user`` expanded, as a shell would.
+
+    A shell leaves ``~`` alone when it is quoted or follows ``=`` (``--out=~/x``); without this
+    the run would create a folder named ``~`` in the working folder.
+    """
+    return Path(text).expanduser()
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse that reports bad arguments as :func:`run_cli`'s one-line error (exit 2, no
     usage dump), for every entry point.
 
     Run as a ``yafs-safetail`` subcommand, the parser's usage and help show that command
     (``yafs-safetail run``) instead of the script's own ``prog``, since that is what the user
-    typed; run directly, a script keeps its own name.
+    typed; run directly, a script keeps its own name. Every parser with ``--help`` also has
+    ``--version``, and an option declared with ``type=Path`` (by hand or by
+    ``runs.config.add_options``) reads its value through :func:`user_path`.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -58,6 +75,13 @@ class ArgumentParser(argparse.ArgumentParser):
         command = _command_prog.get()
         if command is not None:
             self.prog = command
+        # argparse looks an option's type up in this registry before calling it, so the one
+        # line covers every path option of every command, and the argument groups (which
+        # share the parser's registry) too.
+        self.register("type", Path, user_path)
+        if self.add_help:  # not the helper parsers that pick a few options out of the rest
+            self.add_argument("--version", action="version", version=VERSION_LINE,
+                              help="print the package's version and exit")
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(message)
@@ -286,7 +310,7 @@ def _with_verbosity_options(
 
 def _listing() -> str:
     """The usage line and one line per subcommand."""
-    lines = [USAGE]
+    lines = [USAGE, f"  {'--version':<14} print the package's version ({__version__})"]
     lines += [f"  {name:<14} {what} (experiments/{module}.py)" for name, (module, what) in SCRIPT_COMMANDS.items()]
     lines.append(f"  {'figures':<14} redraw a results folder's figures (python -m yafs_safetail.figures)")
     return "\n".join(lines) + "\n"
@@ -305,6 +329,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args[:1] in (["-h"], ["--help"]):
         print(_listing(), end="")
+        return 0
+    if args[:1] == ["--version"]:
+        print(VERSION_LINE)
         return 0
     if not args:
         # Nothing asked is a usage error, not a success: a script calling the command without

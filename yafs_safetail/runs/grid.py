@@ -166,13 +166,13 @@ def _json_value(value: Any) -> Any:
 
 def _setting(source: str, name: str, value: Any) -> Any:
     """A grid value as the JSON value the run is identified by (paths made absolute, so the
-    workers, wherever they start, read the same files)."""
+    workers, wherever they start, read the same files; ``~`` expanded, as on the command line)."""
     if name not in SETTABLE_FIELDS:
         raise GridError(f"{source}: {name!r} is not a run setting; valid: {', '.join(SETTABLE_FIELDS)}")
     if name in PATH_FIELDS and value is not None:
         if not isinstance(value, str):
             raise GridError(f"{source}: {name} = {value!r}: expected a path")
-        return str(Path(value).resolve())
+        return str(Path(value).expanduser().resolve())
     if name in ("redundancy_levels", "methods"):
         if not isinstance(value, list | tuple):
             raise GridError(f"{source}: {name} = {value!r}: expected a list")
