@@ -221,3 +221,15 @@ def test_a_tilde_in_a_grid_files_path_is_the_home_folder(monkeypatch: pytest.Mon
     shutil.copy(DEFAULT_TOPOLOGY, tmp_path / "t.json")
     (spec,) = expand({"topology": "~/t.json"}, {"seed": [0]})
     assert spec.settings["topology"] == str((tmp_path / "t.json").resolve())
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_commands_result_is_its_report_or_with_quiet_its_folder(
+        quiet: bool, capsys: pytest.CaptureFixture[str]) -> None:
+    import argparse
+
+    from yafs_safetail.cli import print_result
+
+    print_result(argparse.Namespace(quiet=quiet), Path("results/x"), "| table |\nresults: results/x")
+    expected = "results/x\n" if quiet else "| table |\nresults: results/x\n"
+    assert capsys.readouterr().out == expected

@@ -97,6 +97,12 @@ def test_cli_redraws(drawn_folder):
     assert "wrote 8 files" in done.stdout  # PNG only unless asked
 
 
+def test_quiet_prints_only_the_figures_folder(drawn_folder, capsys):
+    folder, _ = drawn_folder
+    assert figures.main([str(folder), "--quiet"]) == 0
+    assert capsys.readouterr().out == f"{folder / figures.FIGURES_DIR}\n"
+
+
 def _break_column(folder):
     frame = results.read_requests_csv(folder).drop(columns=["deviation_s"])
     frame.to_csv(folder / "requests.csv", index=False)

@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import run_in_process
 from results_helpers import write_run_folder
 
 from yafs_safetail.edge.scenario import REPOSITORY
@@ -69,3 +70,16 @@ def test_no_common_method(tmp_path, two_runs):
     write_requests_csv(renamed, other)
     with pytest.raises(ResultsFileError, match="no method in common"):
         compare_runs(a, other)
+
+
+def test_quiet_prints_only_the_folder_and_without_out_the_table(two_runs, tmp_path):
+    from yafs_safetail.commands.compare_runs import main
+
+    a, b = two_runs
+    out = tmp_path / "cmp"
+    done = run_in_process(main, a, b, "--out", out, "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == f"{out}\n" and (out / "compare.csv").is_file()
+    # No folder: the table is what the command gives, --quiet or not.
+    loud, quiet = run_in_process(main, a, b), run_in_process(main, a, b, "-q")
+    assert quiet.stdout == loud.stdout and "p99_s" in quiet.stdout

@@ -283,6 +283,7 @@ def test_a_quiet_campaign_shows_only_its_failed_run(tmp_path: Path) -> None:
     assert done.returncode == 1, done.stderr
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("warning: [campaign ") and "failed" in lines[0], done.stderr
+    assert done.stdout == ""  # a campaign with a failed run has no folder to hand on
     assert "topology file not found" in lines[0]
     # The campaign's own log keeps every line; the finished run has its run.log.
     assert "started" in (out / "campaign.log").read_text()

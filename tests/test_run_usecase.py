@@ -72,7 +72,8 @@ def uc1_run(tmp_path_factory) -> Path:
     done = run_script("--uc", "1", "--seed", "4", "--out", out, "--quiet", "--yafs-csv", *TINY)
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""  # --quiet: no progress, and TensorFlow's start-up notes are silenced
-    assert "| SafeTail |" in done.stdout and f"results: {out}" in done.stdout
+    assert done.stdout == f"{out}\n"  # --quiet: only the folder's path; the table is in summary.md
+    assert "| SafeTail |" in (out / "summary.md").read_text()
     return out
 
 

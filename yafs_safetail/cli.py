@@ -176,9 +176,27 @@ def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
     """``--quiet`` and ``--verbose`` (mutually exclusive), for every entry point."""
     group = parser.add_mutually_exclusive_group()
     group.add_argument("-q", "--quiet", action="store_true",
-                       help="warnings and errors only: no progress lines or bars")
+                       help="warnings and errors only on stderr, no progress lines or bars; on "
+                            "stdout only the results folder's path")
     group.add_argument("-v", "--verbose", action="store_true",
                        help="also debug lines: the configuration, each part's timing, worker processes")
+
+
+def print_result(args: argparse.Namespace, folder: str | os.PathLike[str], report: str) -> None:
+    """A command's last words on stdout, once its folder is written.
+
+    Args:
+        args: the parsed options (their ``quiet``).
+        folder: where the command wrote its results.
+        report: what it prints without ``--quiet`` (its table, then where it wrote).
+
+    With ``--quiet`` only ``folder``'s path is printed, so that a script can take it as it is
+    (``out=$(yafs-safetail run -q ...)``); the report is in the folder's own files anyway.
+    """
+    if args.quiet:
+        print(folder)
+    else:
+        print(report, end="" if report.endswith("\n") else "\n")
 
 
 def configure_verbosity(args: argparse.Namespace) -> int:
@@ -293,21 +311,6 @@ def _command_main(module_name: str) -> Callable[[Sequence[str] | None], int | No
     return command_main
 
 
-def _with_verbosity_options(
-        command_main: Callable[[Sequence[str] | None], int | None]) -> Callable[[Sequence[str] | None], int | None]:
-    """A command whose own parser has no ``--quiet`` / ``--verbose`` (the figures module) gets
-    them here: taken out of its arguments, logging set up, the rest passed on."""
-
-    def main(argv: Sequence[str] | None) -> int | None:
-        parser = ArgumentParser(add_help=False, allow_abbrev=False)
-        add_verbosity_options(parser)
-        args, others = parser.parse_known_args(argv)
-        configure_verbosity(args)
-        return command_main(others)
-
-    return main
-
-
 def _listing() -> str:
     """The usage line and one line per subcommand."""
     lines = [USAGE, f"  {'--version':<14} print the package's version ({__version__})"]
@@ -349,7 +352,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if command == "figures":
             from yafs_safetail.figures import main as figures_main
 
-            return run_cli(_with_verbosity_options(figures_main), rest)
+            return run_cli(figures_main, rest)
         return run_cli(_command_main(SCRIPT_COMMANDS[command][0]), rest)
     finally:
         _command_prog.reset(token)

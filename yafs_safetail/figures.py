@@ -37,7 +37,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from yafs_safetail import results
-from yafs_safetail.cli import ArgumentParser, run_cli
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    print_result,
+    run_cli,
+)
 from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS as DEFAULT_FIGURE_FORMATS  # (re-exported)
 from yafs_safetail.defaults import FIGURE_FORMATS as FIGURE_FORMATS  # (re-exported)
 from yafs_safetail.defaults import figure_formats
@@ -316,9 +322,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--figure-format", type=figure_formats, default=DEFAULT_FIGURE_FORMATS,
                         metavar="FORMATS",
                         help="comma-separated: png, pdf or both (default: png)")
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_verbosity(args)
     written = draw_figures(args.directory, formats=args.figure_format)
-    print(f"wrote {len(written)} files to {Path(args.directory) / FIGURES_DIR}")
+    folder = Path(args.directory) / FIGURES_DIR
+    print_result(args, folder, f"wrote {len(written)} files to {folder}")
     return 0
 
 

@@ -28,6 +28,7 @@ from yafs_safetail.cli import (
     int_list,
     invocation,
     positive_int,
+    print_result,
 )
 
 
@@ -59,9 +60,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     document = calibrate(CalibrationConfig(seeds=seeds, grid=grid, workers=args.workers,
                                            out_dir=args.out, apply=args.apply, command=command))
     provenance = document["provenance"]
-    print(f"best: {document['parameters']} ({document['readings']['load_start']} load start), "
-          f"objective {provenance['objective_value']} (runner-up {provenance['runner_up_objective']}), "
-          f"within ±20% {provenance['within_20_percent']:.0%}")
-    print(f"written: {args.out / 'calibration.json'}" + (" (installed)" if args.apply else ""))
+    print_result(args, args.out,
+                 f"best: {document['parameters']} ({document['readings']['load_start']} load start), "
+                 f"objective {provenance['objective_value']} (runner-up {provenance['runner_up_objective']}), "
+                 f"within ±20% {provenance['within_20_percent']:.0%}\n"
+                 f"written: {args.out / 'calibration.json'}" + (" (installed)" if args.apply else ""))
     return 0
 

@@ -19,7 +19,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from yafs_safetail.cli import ArgumentParser, add_verbosity_options, configure_verbosity, invocation
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_verbosity_options,
+    configure_verbosity,
+    invocation,
+    print_result,
+)
 from yafs_safetail.runs.engine_options import add_engine_options, engine_free_command
 
 
@@ -42,5 +48,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = engine_free_command(invocation("experiments/campaign.py"), sys.argv[1:] if argv is None else argv)
     result = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
-    return 1 if result.failed else 0
+    if result.failed:
+        return 1
+    # The table of runs went to stderr with the progress; stdout says where they are.
+    print_result(args, args.out, f"results: {args.out}")
+    return 0
 

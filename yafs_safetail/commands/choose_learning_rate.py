@@ -29,6 +29,7 @@ from yafs_safetail.cli import (
     positive_float,
     positive_float_list,
     positive_int,
+    print_result,
 )
 from yafs_safetail.defaults import LEARNING_RATE_GRID as RATE_GRID
 from yafs_safetail.edge.published import USE_CASES
@@ -69,8 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     document = choose_learning_rates(LearningRateConfig(
         use_cases=tuple(args.uc), rates=tuple(args.rates), seeds=seeds, steps_scale=args.steps_scale,
         workers=args.workers, out_dir=args.out, command=command))
-    for line in main_rows(document):
-        print(line)
-    print(f"written: {args.out / 'learning_rates.json'}")
+    print_result(args, args.out, "".join(f"{line}\n" for line in main_rows(document))
+                 + f"written: {args.out / 'learning_rates.json'}")
     return 0
 

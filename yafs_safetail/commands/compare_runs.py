@@ -4,7 +4,8 @@ in run A and run B, the ratio B / A and its 95% bootstrap interval.
     python experiments/compare_runs.py RUN_A RUN_B [--out DIR] [--seed 0]
     yafs-safetail compare RUN_A RUN_B [--out DIR]
 
-Prints the table; with --out also writes DIR/compare.csv and DIR/compare.png (a new folder).
+Prints the table; with --out also writes DIR/compare.csv and DIR/compare.png (a new folder), and
+--quiet then prints only DIR.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from yafs_safetail.cli import (
     add_verbosity_options,
     configure_verbosity,
     non_negative_int,
+    print_result,
 )
 
 
@@ -42,9 +44,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             table.to_csv(staging / "compare.csv", index=False, float_format="%.6g")
             plot_comparison(table, staging / "compare.png", str(args.run_a), str(args.run_b))
             output.publish()
-    print(f"A = {args.run_a}\nB = {args.run_b}")
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    if output is not None:
-        print(f"written: {args.out / 'compare.csv'}")
+    report = (f"A = {args.run_a}\nB = {args.run_b}\n"
+              + table.to_string(index=False, float_format=lambda v: f"{v:.3f}") + "\n")
+    if output is None:  # no folder: the table is the result, --quiet or not
+        print(report, end="")
+    else:
+        print_result(args, args.out, report + f"written: {args.out / 'compare.csv'}")
     return 0
 

@@ -30,7 +30,13 @@ from pathlib import Path
 
 # Light modules only until the arguments are checked (--help answers at once); the sweep and its
 # report, with NumPy and pandas behind them, are imported in main.
-from yafs_safetail.cli import ArgumentParser, configure_verbosity, invocation, non_negative_int
+from yafs_safetail.cli import (
+    ArgumentParser,
+    configure_verbosity,
+    invocation,
+    non_negative_int,
+    print_result,
+)
 from yafs_safetail.commands.load_sweep import (
     LEARNER_OPTIONS,
     add_output_options,
@@ -94,7 +100,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                          sweep_run_json(args, config, command, FAILURE_SWEEP_KIND, specs[config.base.seed],
                                         failure_levels=list(config.points), load=config.load,
                                         mttr_s=config.mttr_s, timeout_s=config.timeout_s))
-    print(FAILURE_REPORT.glance(frame))
-    print(checks_markdown(frame, failure_checks))
-    print(f"written: {out / FAILURE_REPORT.table_file}")
+    print_result(args, out, f"{FAILURE_REPORT.glance(frame)}\n{checks_markdown(frame, failure_checks)}\n"
+                            f"written: {out / FAILURE_REPORT.table_file}")
     return 0

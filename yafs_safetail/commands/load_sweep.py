@@ -46,6 +46,7 @@ from yafs_safetail.cli import (
     invocation,
     non_negative_int,
     positive_int,
+    print_result,
 )
 from yafs_safetail.contention.config import LINK_MODELS, ContentionConfig, ContentionError
 from yafs_safetail.contention.sweep_config import ContentionSweep, SweepConfig
@@ -273,11 +274,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "package_version": __version__, **run_json_fields(), "command": command, "kind": SEEDS_KIND,
             "seeds": list(seed_list),
             "seed_folders": {str(seed): f"seed-{seed}" for seed in seed_list}}, indent=1) + "\n")
-        print(comparison)
-        print(f"written: {out / SEEDS_FILE}")
+        print_result(args, out, f"{comparison}\nwritten: {out / SEEDS_FILE}")
         return 0
     frame = frames[seed_list[0]]
-    print(glance_markdown(frame))
-    print(checks_markdown(frame))
-    print(f"written: {out / SWEEP_FILE}")
+    print_result(args, out, f"{glance_markdown(frame)}\n{checks_markdown(frame)}\nwritten: {out / SWEEP_FILE}")
     return 0

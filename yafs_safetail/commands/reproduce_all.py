@@ -46,6 +46,7 @@ from yafs_safetail.cli import (
     configure_verbosity,
     distinct_int_list,
     invocation,
+    print_result,
 )
 from yafs_safetail.defaults import PRESET_NAMES
 from yafs_safetail.edge.published import USE_CASES
@@ -115,5 +116,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     report = write_report(args.out, args.uc, args.preset, args.seeds, command, args.learning_rate,
                           args.figure_formats)
-    print(f"report: {report}")
+    print_result(args, args.out, f"report: {report}")
     return 0

@@ -10,6 +10,7 @@
 
 Progress goes to stderr: bars on a terminal, otherwise one line per phase start and end and
 every 10% of a long phase; --quiet keeps warnings and errors only, --verbose adds debug lines.
+stdout gets summary.md and the folder's path; with --quiet only the path.
 The output folder gets run.log (the command, the configuration, every phase with its time),
 requests.csv (one row per request and method), summary.csv and
 summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
@@ -32,6 +33,7 @@ from yafs_safetail.cli import (
     add_verbosity_options,
     configure_verbosity,
     invocation,
+    print_result,
 )
 from yafs_safetail.defaults import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.topology_io import ScenarioError
@@ -123,6 +125,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     from yafs_safetail.runs.experiment import run_experiment
 
     report = run_experiment(config)
-    print((report.out_dir / "summary.md").read_text(), end="")
-    print(f"\nresults: {report.out_dir}")
+    print_result(args, report.out_dir,
+                 (report.out_dir / "summary.md").read_text() + f"\nresults: {report.out_dir}\n")
     return 0

@@ -30,6 +30,7 @@ from yafs_safetail.cli import (
     invocation,
     non_negative_int,
     positive_int,
+    print_result,
 )
 from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.sweep_config import SweepConfig
@@ -72,7 +73,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         *(sys.argv[1:] if argv is None else argv)])
     output = StagedOutput(args.out, args.overwrite)
     with output as staging:
-        table = measure_training(config, args.windows, log=print)
+        # Its lines of progress are stdout's report; --quiet keeps stdout to the folder's path.
+        table = measure_training(config, args.windows, log=(lambda line: None) if args.quiet else print)
         write_text_atomic(staging / MECHANISM_FILE, table.to_csv(index=False, float_format="%.6g"))
         mechanism_figure(table, staging / "mechanism.png")
         write_text_atomic(staging / "run.json", json.dumps({
@@ -82,5 +84,5 @@ def main(argv: Sequence[str] | None = None) -> int:
             "target": config.target, "windows": args.windows,
             "safetails": [asdict(variant) for variant in config.safetails]}, indent=1) + "\n")
         output.publish()
-    print(f"written: {Path(args.out) / MECHANISM_FILE}")
+    print_result(args, args.out, f"written: {Path(args.out) / MECHANISM_FILE}")
     return 0
