@@ -83,3 +83,67 @@ def test_quiet_prints_only_the_folder_and_without_out_the_table(two_runs, tmp_pa
     # No folder: the table is what the command gives, --quiet or not.
     loud, quiet = run_in_process(main, a, b), run_in_process(main, a, b, "-q")
     assert quiet.stdout == loud.stdout and "p99_s" in quiet.stdout
+
+
+def _rewrite_run_json(folder, **changes):
+    import json
+
+    run = json.loads((folder / "run.json").read_text())
+    for key, value in changes.items():
+        if isinstance(value, dict):
+            run.setdefault(key, {}).update(value)
+        else:
+            run[key] = value
+    (folder / "run.json").write_text(json.dumps(run))
+
+
+def test_runs_in_different_worlds_get_one_warning_line_and_still_exit_0(two_runs):
+    from yafs_safetail.commands.compare_runs import main
+
+    a, b = two_runs
+    same = run_in_process(main, a, b)
+    assert same.returncode == 0 and same.stderr == ""  # the same world: nothing to say
+    _rewrite_run_json(a, topology="topologies/paper_5servers.json", world={"load_peak_users": 2.75})
+    _rewrite_run_json(b, topology="/elsewhere/topologies/paper_5servers.json", world={"load_peak_users": 2.75})
+    moved = run_in_process(main, a, b)
+    assert moved.stderr == ""  # the same file name from another folder: the same topology
+    _rewrite_run_json(b, topology="topologies/3servers.json", world={"load_peak_users": 2.0})
+    for quiet in ([], ["-q"]):  # a warning: --quiet keeps it
+        done = run_in_process(main, a, b, *quiet)
+        assert done.returncode == 0
+        (line,) = done.stderr.splitlines()
+        assert line.startswith(f"warning: {a} and {b} ran in different worlds (")
+        assert '"paper_5servers.json" vs "3servers.json"' in line and "world.load_peak_users 2.75 vs 2.0" in line
+        assert "p99_s" in done.stdout  # the table all the same
+
+
+def test_a_run_without_run_json_is_named_in_the_warning(two_runs):
+    from yafs_safetail.commands.compare_runs import main
+
+    a, b = two_runs
+    (b / "run.json").unlink()
+    done = run_in_process(main, a, b)
+    assert done.returncode == 0 and "p99_s" in done.stdout
+    (line,) = done.stderr.splitlines()
+    assert line.startswith("warning: cannot tell whether the two runs share a world: ") and str(b) in line
+
+
+def test_compare_png_keeps_long_paths_and_its_axis_label_inside_the_figure(two_runs):
+    from matplotlib.text import Text
+
+    from yafs_safetail.results.compare import comparison_figure
+
+    a, b = two_runs
+    long_b = "/a/very/long/path/" + "nested-folder-with-a-long-name/" * 8 + "run"
+    figure = comparison_figure(compare_runs(a, b, seed=0), str(a), long_b)
+    renderer = figure.canvas.get_renderer()
+    figure.draw(renderer)  # the constrained layout runs here
+    box = figure.bbox
+    texts = [t for t in figure.findobj(Text) if t.get_visible() and t.get_text()]
+    assert any(t.get_text().startswith("B / A") for t in texts)
+    for text in texts:
+        extent = text.get_window_extent(renderer)
+        assert box.x0 - 1 <= extent.x0 and extent.x1 <= box.x1 + 1, text.get_text()
+        assert box.y0 - 1 <= extent.y0 and extent.y1 <= box.y1 + 1, text.get_text()
+    shown = "".join(t.get_text() for t in texts).replace("\n", "")
+    assert long_b in shown  # wrapped, not cut

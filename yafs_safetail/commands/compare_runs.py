@@ -4,13 +4,16 @@ in run A and run B, the ratio B / A and its 95% bootstrap interval.
     python experiments/compare_runs.py RUN_A RUN_B [--out DIR] [--seed 0]
     yafs-safetail compare RUN_A RUN_B [--out DIR]
 
-Prints the table; with --out also writes DIR/compare.csv and DIR/compare.png (a new folder), and
+Prints the table, and one warning line on stderr when the two runs' worlds differ (topology,
+placement, use case, preset, world settings, failures, energy models: read from both run.json
+files); with --out also writes DIR/compare.csv and DIR/compare.png (a new folder), and
 --quiet then prints only DIR.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,6 +24,8 @@ from yafs_safetail.cli import (
     non_negative_int,
     print_result,
 )
+
+log = logging.getLogger(__name__)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -34,11 +39,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     configure_verbosity(args)
     # The arguments are checked: now the folders, with pandas and matplotlib.
-    from yafs_safetail.results.compare import compare_runs, plot_comparison
+    from yafs_safetail.results.compare import compare_runs, plot_comparison, world_warning
     from yafs_safetail.runs.output import StagedOutput
 
     output = StagedOutput(args.out) if args.out is not None else None  # the target is checked first
     table = compare_runs(args.run_a, args.run_b, args.seed)
+    # After the table: bad input stays the one error line. A warning, not an error: comparing
+    # two worlds on purpose (a topology's effect) is a use too; it only must not go unnoticed.
+    warning = world_warning(args.run_a, args.run_b)
+    if warning is not None:
+        log.warning("%s", warning)
     if output is not None:  # written before anything is printed: a closed pipe cannot stop it
         with output as staging:
             table.to_csv(staging / "compare.csv", index=False, float_format="%.6g")

@@ -3,14 +3,18 @@ ratio B / A with a bootstrap 95% interval (``yafs-safetail compare RUN_A RUN_B``
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from yafs_safetail.methods.registry import sort_methods
 from yafs_safetail.results.files import ResultsFileError, read_requests_csv
+from yafs_safetail.results.run_json import read_run_json
 
 #: The figures compared, as (column name, percentile or None for the mean servers per request).
 COMPARED: tuple[tuple[str, float | None], ...] = (
@@ -19,6 +23,64 @@ COMPARED: tuple[tuple[str, float | None], ...] = (
 #: Bootstrap resamples per interval.
 BOOTSTRAP_RESAMPLES = 1000
 COMPARE_COLUMNS = ("method", "figure", "run_a", "run_b", "ratio_b_over_a", "ratio_low", "ratio_high")
+
+
+#: The ``run.json`` keys that say which world a run's requests met: two runs differing in one of
+#: them do not measure their methods on the same requests, servers and loads, so B / A mixes the
+#: methods' difference with the worlds'. The seed is not among them (comparing seeds is a use of
+#: the command), nor the learner's settings (comparing them is its main use).
+WORLD_KEYS = ("use_case", "preset", "topology", "placement", "n_servers", "step_interval_s", "world",
+              "failures", "energy")
+#: Keys naming input files: compared by file name, since each run records the path as it was typed
+#: from its own working folder.
+FILE_KEYS = ("topology", "placement", "down_file")
+#: How many differences the warning spells out before it counts the rest.
+SHOWN_DIFFERENCES = 4
+
+
+def _flat(value: Any, key: str) -> Iterator[tuple[str, Any]]:
+    """``(dotted key, value)`` for every leaf of a run.json value (``world.load_peak_users``)."""
+    if isinstance(value, Mapping):
+        for name in sorted(value):
+            yield from _flat(value[name], f"{key}.{name}")
+    else:
+        leaf = key.rsplit(".", 1)[-1]
+        yield key, Path(value).name if leaf in FILE_KEYS and isinstance(value, str) else value
+
+
+def _world_of(run: Path) -> dict[str, Any]:
+    recorded = json.loads(read_run_json(run).to_json())  # checked, extra keys included
+    return dict(item for key in WORLD_KEYS if key in recorded for item in _flat(recorded[key], key))
+
+
+def world_differences(run_a: Path, run_b: Path) -> list[str]:
+    """What differs between the worlds two results folders ran in, one ``key A vs B`` each.
+
+    Reads both ``run.json`` files (:data:`WORLD_KEYS`, nested settings by dotted key; a key one
+    run lacks, written by an older version, is not counted as a difference).
+
+    Raises:
+        ResultsFileError: a folder without a readable ``run.json``.
+    """
+    a, b = _world_of(run_a), _world_of(run_b)
+    return [f"{key} {json.dumps(a[key])} vs {json.dumps(b[key])}"
+            for key in a if key in b and a[key] != b[key]]
+
+
+def world_warning(run_a: Path, run_b: Path) -> str | None:
+    """The one-line warning ``compare`` prints when the two runs' worlds differ, else None."""
+    try:
+        differences = world_differences(run_a, run_b)
+    except ResultsFileError as error:  # the table may still be read; say what is unknown
+        return f"cannot tell whether the two runs share a world: {error}"
+    if not differences:
+        return None
+    shown = "; ".join(differences[:SHOWN_DIFFERENCES])
+    more = len(differences) - SHOWN_DIFFERENCES
+    if more > 0:
+        shown += f"; and {more} more"
+    return (f"{run_a} and {run_b} ran in different worlds ({shown}): B / A mixes the methods' "
+            "difference with the worlds'")
 
 
 def _figure(values: np.ndarray, percentile: float | None) -> np.ndarray:
@@ -69,16 +131,27 @@ def compare_runs(run_a: Path, run_b: Path, seed: int = 0) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=list(COMPARE_COLUMNS))
 
 
-def plot_comparison(table: pd.DataFrame, path: Path, label_a: str, label_b: str) -> Path:
-    """compare.png: B / A per method and figure, with the intervals (1 = no difference)."""
-    import matplotlib
+def _wrapped(text: str, width_chars: int) -> str:
+    """``text`` in lines of at most ``width_chars`` characters, broken anywhere (a long path has
+    no spaces to break at)."""
+    return "\n".join(text[i:i + width_chars] for i in range(0, len(text), width_chars)) or text
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def comparison_figure(table: pd.DataFrame, label_a: str, label_b: str) -> Any:
+    """The figure of compare.png (see :func:`plot_comparison`), not yet written.
+
+    The runs' paths, which may be long, go below the axes in full, wrapped to the figure's width;
+    the axis label stays short. Constrained layout then keeps every label inside the figure.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     methods = list(dict.fromkeys(table["method"]))
     figures = [name for name, _ in COMPARED]
-    fig, axis = plt.subplots(figsize=(max(6.0, 1.1 * len(methods)), 4.2))
+    width_in = max(6.0, 1.1 * len(methods))
+    fig = Figure(figsize=(width_in, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    axis = fig.add_subplot()
     width = 0.8 / len(figures)
     for offset, figure in enumerate(figures):
         rows = table[table["figure"] == figure].set_index("method").loc[methods]
@@ -87,10 +160,21 @@ def plot_comparison(table: pd.DataFrame, path: Path, label_a: str, label_b: str)
         axis.bar(x, rows["ratio_b_over_a"], width, yerr=errors, capsize=2, label=figure)
     axis.axhline(1.0, color="black", linewidth=0.8)
     axis.set_xticks(np.arange(len(methods)), methods, rotation=30, ha="right")
-    axis.set_ylabel(f"B / A  (A = {label_a}, B = {label_b})", fontsize=8)
-    axis.set_title("test phase: run B over run A, 95% bootstrap intervals")
-    axis.legend(fontsize=7, ncol=len(figures))
-    fig.tight_layout()
-    fig.savefig(path, dpi=120, metadata={"Software": None})
-    plt.close(fig)
+    axis.set_ylabel("B / A  (1 = no difference)")
+    fig.suptitle("test phase: run B over run A, 95% bootstrap intervals")
+    # Between the title and the bars, where it hides none of them.
+    axis.legend(fontsize=7, ncol=len(figures), loc="lower center", bbox_to_anchor=(0.5, 1.0),
+                frameon=False)
+    # About 0.55 of the font size per character of a monospace-like path at 8 points.
+    chars = max(20, int(width_in * 72 / (0.55 * 8)) - 6)
+    fig.supxlabel(f"{_wrapped('A = ' + label_a, chars)}\n{_wrapped('B = ' + label_b, chars)}",
+                  fontsize=8, ha="left", x=0.01)
+    return fig
+
+
+def plot_comparison(table: pd.DataFrame, path: Path, label_a: str, label_b: str) -> Path:
+    """compare.png: B / A per method and figure, with the intervals (1 = no difference)."""
+    fig = comparison_figure(table, label_a, label_b)
+    # bbox_inches="tight" as well: whatever a label's length, the file holds all of it.
+    fig.savefig(path, dpi=120, metadata={"Software": None}, bbox_inches="tight")
     return path
