@@ -65,10 +65,11 @@ def test_figure_contents():
     run = make_run(use_case=2, beta=20)
     run.preset = "tuned"
     built = figures.build_figures(requests, run)
-    assert set(built) == {*"abcdefg", "energy"}
+    assert set(built) == {*"abcdefg", "energy", "cdf"}
+    starts = {"energy": "p99 latency against energy", "cdf": "Latency CDF, test phase"}
     for panel, figure in built.items():
         title = figure.axes[0].get_title()
-        assert title.startswith(f"({panel})" if panel != "energy" else "p99 latency against energy")
+        assert title.startswith(starts.get(panel, f"({panel})"))
         assert "use case 2" in title and "preset tuned" in title
     # A requests table without energy columns (written before them): the figure says so.
     assert "no energy columns" in built["energy"].axes[0].get_title()
@@ -90,11 +91,30 @@ def test_figure_contents():
     assert boundary.get_xdata()[0] == pytest.approx(3.0)
 
 
+def test_latency_cdf_has_every_methods_test_latencies_and_the_target():
+    requests = make_requests(np.random.default_rng(25), n_train=30, n_test=50)
+    axes = figures.build_figures(requests, make_run())["cdf"].axes[0]
+    test = requests[requests["phase"] == "test"]
+    curves = {line.get_label(): line for line in axes.get_lines() if not line.get_label().startswith("avg.")}
+    assert list(curves) == results.sort_methods(set(test["method"]))
+    for method, line in curves.items():
+        latencies_s = np.sort(test.loc[test["method"] == method, "latency_s"].to_numpy(float))
+        np.testing.assert_allclose(line.get_xdata(), latencies_s)  # the test phase's, every one
+        share = np.asarray(line.get_ydata())
+        assert share[-1] == pytest.approx(1.0) and np.all(np.diff(share) > 0)
+    (target,) = [line for line in axes.get_lines() if line.get_label().startswith("avg. target")]
+    mean_target = test.loc[test["method"] == "SafeTail", "target_s"].mean()
+    assert target.get_xdata()[0] == pytest.approx(mean_target)
+    assert axes.get_xscale() == "log"
+    # SafeTail drawn over the others (it often runs along Oracle's curve).
+    assert curves["SafeTail"].get_zorder() > max(line.get_zorder() for m, line in curves.items() if m != "SafeTail")
+
+
 def test_cli_redraws(drawn_folder):
     folder, _ = drawn_folder
     done = run_cli(str(folder))
     assert done.returncode == 0, done.stderr
-    assert "wrote 8 files" in done.stdout  # PNG only unless asked
+    assert f"wrote {len(figures.FIGURE_STEMS)} files" in done.stdout  # PNG only unless asked
 
 
 def test_quiet_prints_only_the_figures_folder(drawn_folder, capsys):

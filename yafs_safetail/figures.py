@@ -12,7 +12,9 @@ reads ``requests.csv`` and ``run.json`` (see ``docs/results.md``) and writes, in
 * (b)-(d) ``fig_b_safetail_vs_rand``, ``fig_c_safetail_vs_minload``,
   ``fig_d_safetail_vs_minprop``: SafeTail against every x of that baseline in the run;
 * (e)-(g) ``fig_e_access_rate``, ``fig_f_latency_deviation``, ``fig_g_abs_reward``: SafeTail's
-  β-step averages per average episode, training then testing, the boundary marked.
+  β-step averages per average episode, training then testing, the boundary marked;
+* beyond the paper, ``p99_vs_energy`` (each method's p99 against its energy per request) and
+  ``latency_cdf`` (each method's test-phase latency CDF on a log axis, the average target marked).
 
 Latency panels use the test phase. Figures are drawn with matplotlib's object API on the Agg
 canvas (no pyplot, so no global figure state and nothing to close), and every file is written
@@ -35,6 +37,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from yafs_safetail import results
 from yafs_safetail.cli import (
@@ -61,6 +64,8 @@ FIGURE_STEMS: dict[str, str] = {
     "g": "fig_g_abs_reward",
     # Beyond the paper: what each method's tail costs in energy (docs/failures_energy.md).
     "energy": "p99_vs_energy",
+    # Beyond the paper: every method's whole test-phase latency distribution, not four points of it.
+    "cdf": "latency_cdf",
 }
 PNG_DPI = 150
 
@@ -229,6 +234,49 @@ def _p99_against_energy(summary: pd.DataFrame, run: RunMetadata) -> Figure:
     return figure
 
 
+def _latency_cdf(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata) -> Figure:
+    """Each method's empirical CDF of its test-phase latencies on one log-x axes, with the average
+    target marked: where the bars of (a)-(d) show four percentiles, this shows all of them, so a
+    tail that a percentile steps over (fallbacks, a second mode) is seen."""
+    figure, axes = _new_figure(run, "Latency CDF, test phase")
+    test = requests[requests["phase"] == "test"]
+    present = list(summary["method"])
+    own = _own_methods(present)
+    for method in present:
+        latencies_s = np.sort(test.loc[test["method"] == method, "latency_s"].to_numpy(dtype=float))
+        if latencies_s.size == 0:
+            continue
+        share = np.arange(1, latencies_s.size + 1) / latencies_s.size
+        family, level = results.parse_method(method)
+        # The learner and the bound stand out; the baselines' levels are told apart by dashes too,
+        # since their shades of one colour are close.
+        emphasis = method in (results.SAFETAIL, results.ORACLE) or method in own
+        style = "-" if emphasis or level in (None, 1) else ("--" if level == 2 else ":")
+        # SafeTail on top: it often runs along Oracle's curve and would be hidden under it.
+        layer = 4 if method == results.SAFETAIL else 3 if emphasis else 2
+        axes.step(latencies_s, share, where="post", color=_colour(method, own), label=method,
+                  linestyle=style, linewidth=1.8 if emphasis else 1.0, zorder=layer)
+    target_s = _average_target_s(requests)
+    axes.axvline(target_s, color="black", linestyle="--", linewidth=1,
+                 label=f"avg. target {target_s:.2g} s")
+    # Latencies span a factor of ten or more between Oracle's median and a baseline's fallbacks:
+    # a log axis keeps both the body and the tail readable.
+    axes.set_xscale("log")
+    # Plain numbers (0.5, 2, not 5×10⁻¹, 2×10⁰), and between two powers of ten only 2, 3 and 5:
+    # every minor tick labelled would run together.
+    axes.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axes.xaxis.set_minor_formatter(FuncFormatter(
+        lambda value, _: f"{value:g}" if f"{value:.0e}"[0] in "235" else ""))
+    axes.tick_params(axis="x", which="both", labelsize=7)
+    axes.set_xlabel("latency (s), log scale")
+    axes.set_ylabel("share of test requests ≤ latency")
+    axes.set_ylim(0.0, 1.02)
+    # Beside the axes: inside, eleven entries would cover the curves wherever they were put.
+    figure.subplots_adjust(right=0.73)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=6.5, borderaxespad=0)
+    return figure
+
+
 def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
     """Read and check what the figures need from a results folder.
 
@@ -250,14 +298,15 @@ def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame,
 
 
 def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]:
-    """Build panels (a)-(g) and the p99-against-energy figure in memory, without writing anything.
+    """Build panels (a)-(g), the p99-against-energy figure and the latency CDF in memory, without
+    writing anything.
 
     Args:
         requests: a checked requests table (see :func:`read_figure_inputs`).
         run: the run's metadata.
 
     Returns:
-        Panel letter ("a".."g", and "energy") to its matplotlib Figure (on an Agg canvas).
+        Panel letter ("a".."g", "energy" and "cdf") to its matplotlib Figure (on an Agg canvas).
     """
     summary = results.summarize(requests, preset=run.preset, beta=run.beta)
     boundary = results.train_test_boundary(requests, run.beta)
@@ -273,6 +322,7 @@ def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]
         built["g"] = _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
                                     run, "g", "SafeTail |reward|", "average |reward|")
         built["energy"] = _p99_against_energy(summary, run)
+        built["cdf"] = _latency_cdf(requests, summary, run)
     return built
 
 
@@ -282,7 +332,8 @@ def draw_figures(
     run: RunMetadata | None = None,
     formats: Sequence[str] = DEFAULT_FIGURE_FORMATS,
 ) -> list[Path]:
-    """Draw panels (a)-(g) and ``p99_vs_energy`` into ``directory/figures`` in each of ``formats``.
+    """Draw panels (a)-(g), ``p99_vs_energy`` and ``latency_cdf`` into ``directory/figures`` in
+    each of ``formats``.
 
     Args:
         directory: the results folder.
@@ -315,7 +366,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """``python -m yafs_safetail.figures DIR``: redraw every figure of a results folder."""
     parser = ArgumentParser(
         prog="python -m yafs_safetail.figures",
-        description="Redraw the paper's Figs. 5-7 (a)-(g) from a results folder "
+        description="Redraw the paper's Figs. 5-7 (a)-(g), p99_vs_energy and latency_cdf from a results folder "
                     "(requests.csv and run.json) into DIR/figures.",
     )
     parser.add_argument("directory", metavar="DIR", help="results folder of one run")
