@@ -233,3 +233,20 @@ def test_a_commands_result_is_its_report_or_with_quiet_its_folder(
     print_result(argparse.Namespace(quiet=quiet), Path("results/x"), "| table |\nresults: results/x")
     expected = "results/x\n" if quiet else "| table |\nresults: results/x\n"
     assert capsys.readouterr().out == expected
+
+
+def test_a_tilde_in_a_methods_file_is_the_home_folder(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    import shutil
+
+    from yafs_safetail.commands import run_usecase
+    from yafs_safetail.runs.grid import expand
+
+    monkeypatch.setenv("HOME", str(tmp_path))
+    shutil.copy(REPOSITORY / "examples" / "custom_policy" / "nearest_free.py", tmp_path / "mine.py")
+    config = run_usecase.parse_args(["--uc", "1", "--method", "Near=~/mine.py:NearestFree",
+                                     "--method", "~/mine.py:NearestFree"])
+    assert [m.spec for m in config.methods] == [f"Near={tmp_path}/mine.py:NearestFree",
+                                                f"{tmp_path}/mine.py:NearestFree"]
+    assert config.methods[0].name == "Near"
+    (spec,) = expand({"methods": ["~/mine.py:NearestFree"]}, {"seed": [0]})
+    assert spec.settings["methods"] == [f"{tmp_path}/mine.py:NearestFree"]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, replace
@@ -90,7 +91,8 @@ def add_world_options(parser: argparse.ArgumentParser) -> None:
                              "the bandwidth of the level when they start (at-start, the single-user reading)")
     parser.add_argument("--background", action="store_true",
                         help="add the load trace's background tenants on top of the users' load")
-    parser.add_argument("--user-conditions", default="topology",
+    # A word or a file: ~ expanded as in every path option (the words have none to expand).
+    parser.add_argument("--user-conditions", default="topology", type=os.path.expanduser,
                         help="each user's distance condition per server: topology (default), generated "
                              "(the topology's ±1 per user and server) or a JSON file (docs/contention.md)")
 

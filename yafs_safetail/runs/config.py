@@ -79,6 +79,7 @@ __all__ = [
     "LATER_RESULT_FIELDS",
     "ExperimentConfig", "GROUPS", "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS",
     "add_options", "config_from_args", "check_config", "learner_overrides", "learner_config",
+    "expand_method_spec",
     # From runs.settings.
     "Check", "Setting", "setting", "setting_of", "one_of", "BOOLEAN", "FORMATS", "LEVELS",
     "NON_NEGATIVE_INTEGER", "NON_NEGATIVE_NUMBER", "POSITIVE_INTEGER", "POSITIVE_NUMBER",
@@ -93,10 +94,19 @@ class ExperimentError(ValueError):
 # ----------------------------------------------------------------------------- the groups
 
 
+def expand_method_spec(spec: str) -> str:
+    """A ``--method [NAME=]FILE.py:CLASS`` spec with ``~`` in its file expanded, as every path
+    option's is (``cli.user_path``); a ``module:Class`` spec is returned as it is."""
+    name, sep, target = spec.partition("=")
+    if not sep or ":" in name or "/" in name:  # no NAME= prefix (as methods.registry reads it)
+        name, sep, target = "", "", spec
+    return f"{name}{sep}{Path(target).expanduser()}" if target.startswith("~") else spec
+
+
 def _user_methods(specs: Sequence[str]) -> tuple[UserMethod, ...]:
     from yafs_safetail.methods.registry import UserMethod  # NumPy: only once the options parsed
 
-    return tuple(UserMethod(spec) for spec in specs)
+    return tuple(UserMethod(expand_method_spec(spec)) for spec in specs)
 
 
 @dataclass(frozen=True)

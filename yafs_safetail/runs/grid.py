@@ -44,6 +44,7 @@ from yafs_safetail.runs.config import (
     LATER_RESULT_FIELDS,
     RESULT_FIELDS,
     ExperimentConfig,
+    expand_method_spec,
 )
 from yafs_safetail.runs.config import RUNTIME_FIELDS as RUNTIME_FIELDS  # (re-exported)
 
@@ -176,6 +177,8 @@ def _setting(source: str, name: str, value: Any) -> Any:
     if name in ("redundancy_levels", "methods"):
         if not isinstance(value, list | tuple):
             raise GridError(f"{source}: {name} = {value!r}: expected a list")
+        if name == "methods":
+            return [expand_method_spec(item) if isinstance(item, str) else item for item in value]
         return list(value)
     return _json_value(value)
 
