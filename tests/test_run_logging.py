@@ -300,3 +300,17 @@ def test_console_subcommands_take_quiet_or_verbose_not_both(command: list[str],
     assert main([*command, "--quiet", "--verbose"]) == EXIT_BAD_INPUT
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and "not allowed with" in err
+
+
+def test_a_quiet_sweep_prints_only_its_folder(tmp_path: Path) -> None:
+    from in_process import run_in_process
+
+    from yafs_safetail.commands import load_sweep
+
+    out = tmp_path / "sweep"
+    done = run_in_process(load_sweep.main, "--users", "5", "--loads", "0.3", "--steps-scale", "0.02",
+                          "--methods", "Oracle,MinLoad-1", "--no-safetail", "--workers", "1",
+                          "--out", out, "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == f"{out}\n" and done.stderr == ""
+    assert "| load |" in (out / "SWEEP.md").read_text()  # the table is in the folder
