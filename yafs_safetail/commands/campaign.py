@@ -9,7 +9,8 @@ to combine in ``[axes]`` (see yafs_safetail/runs/grid.py and docs/campaigns.md).
 into ``OUT/<axis values>-<run id>/``; rerunning the same command resumes where it stopped and
 recomputes nothing finished. Progress goes to stderr (none with --quiet but failed runs) and
 ``OUT/campaign.log``, each run's state to ``OUT/campaign.json``, each run's own log to its
-``run.log``; the exit status is 1 when a run failed.
+``run.log``; stdout gets ``results: OUT`` at the end (--quiet: ``OUT`` alone); the exit status
+is 1 when a run failed.
 """
 
 from __future__ import annotations
