@@ -13,11 +13,12 @@ import pytest
 from yafs_safetail.logs import RUN_LOG_FILE
 from yafs_safetail.runs import campaign
 from yafs_safetail.runs.campaign import EARLIER, FAILED, run_campaign
-from yafs_safetail.runs.grid import GridError, RunSpec, expand, load_grid, make_config
+from yafs_safetail.runs.grid import GridError, RunSpec, expand, load_grid, make_config, run_id
 
 TINY = {"steps_scale": 0.013, "figures": False}
 REPOSITORY = Path(__file__).resolve().parents[1]
 TOPOLOGY = REPOSITORY / "topologies" / "paper_5servers.json"
+PLACEMENT = REPOSITORY / "placements" / "paper_5servers.json"
 
 
 def folder_bytes(folder: Path) -> dict[str, bytes]:
@@ -43,13 +44,13 @@ def test_run_id_follows_what_the_results_depend_on(tmp_path: Path) -> None:
     assert one(learning_rate=1e-3) != base and one(learning_rate=1e-3) != one(learning_rate=1e-4)
     edited = tmp_path / "topology.json"
     shutil.copy(TOPOLOGY, edited)
-    same_place = one(topology=str(edited))
+    same_place = one(topology=str(edited), placement=str(PLACEMENT))
     edited.write_text(edited.read_text().replace("\n", "\n\n"))  # same place, other bytes
-    assert one(topology=str(edited)) != same_place
+    assert one(topology=str(edited), placement=str(PLACEMENT)) != same_place
 
 
 def test_bad_grids_are_one_line_errors(tmp_path: Path) -> None:
-    with pytest.raises(GridError, match="'workers' is not a run setting"):
+    with pytest.raises(GridError, match="base.workers = 2: set by the campaign"):
         expand({"workers": 2}, {"seed": [0]})
     with pytest.raises(GridError, match="two different runs the folder 'same'"):
         expand(TINY, {"seed": [0, 1]}, name="same")
@@ -63,7 +64,7 @@ def test_bad_grids_are_one_line_errors(tmp_path: Path) -> None:
         load_grid(grid)
     assert "\n" not in str(error.value)
     grid.write_text("[axis]\nseed = [0]\n")
-    with pytest.raises(GridError, match="unknown entry 'axis'"):
+    with pytest.raises(GridError, match="axis: unknown entry"):
         load_grid(grid)
 
 
@@ -83,7 +84,10 @@ def uncut(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[RunSpec]
     """Two tiny runs and one that fails at its checks, two at a time, without interruption."""
     out = tmp_path_factory.mktemp("campaign") / "uncut"
     specs = expand(TINY, {"seed": [0, 1]})
-    broken = expand({**TINY, "topology": "/nonexistent/topology.json"}, {"seed": [0]})
+    # A run that fails at its own checks: made by hand, since a grid naming a missing file is
+    # refused whole before anything runs (tests/test_campaign_grid.py).
+    settings = {**specs[0].settings, "topology": "/nonexistent/topology.json"}
+    broken = [RunSpec(name="seed0-broken", run_id=run_id(settings), settings=settings)]
     stream = io.StringIO()
     result = run_campaign([*specs, *broken], out, workers=2, stream=stream)
     return out, specs, result, stream.getvalue()

@@ -5,7 +5,10 @@
     python experiments/campaign.py --grid grid.toml --out results/campaign1 --ray-address head:6379
 
 The grid (TOML, YAML or JSON) sets ExperimentConfig fields in ``[base]`` and lists the values
-to combine in ``[axes]`` (see yafs_safetail/runs/grid.py and docs/campaigns.md). Each run goes
+to combine in ``[axes]`` (see yafs_safetail/runs/grid.py and docs/campaigns.md). A relative path
+in the grid is read from the grid file's folder, else is the packaged default of that name
+(topologies/paper_5servers.json...). The whole grid is checked before any run starts: each bad
+entry is one error line, the exit status 2, and nothing is written. Each run goes
 into ``OUT/<axis values>-<run id>/``; rerunning the same command resumes where it stopped and
 recomputes nothing finished. Progress goes to stderr (none with --quiet but failed runs) and
 ``OUT/campaign.log``, each run's state to ``OUT/campaign.json``, each run's own log to its
@@ -21,6 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from yafs_safetail.cli import (
+    EXIT_BAD_INPUT,
     ArgumentParser,
     add_verbosity_options,
     configure_verbosity,
@@ -43,9 +47,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_verbosity(args)
     # The arguments are checked: now the grid and the campaign, with NumPy and pandas.
     from yafs_safetail.runs.campaign import run_campaign
-    from yafs_safetail.runs.grid import load_grid
+    from yafs_safetail.runs.grid import GridError, load_grid
 
-    specs = load_grid(args.grid)
+    try:
+        specs = load_grid(args.grid)  # checked whole before --out is touched
+    except GridError as error:
+        # Every bad entry on its own line (run_cli would join them into one).
+        for line in error.lines:
+            print(f"error: {line}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     command = engine_free_command(invocation("experiments/campaign.py"), sys.argv[1:] if argv is None else argv)
     result = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
