@@ -1,9 +1,14 @@
 """Campaign grids: checked whole before anything runs (one line per bad entry, exit 2, nothing
-written), and their paths resolved from the grid's folder or as the packaged defaults."""
+written), their paths resolved from the grid's folder or as the packaged defaults, and the
+example grid of docs/campaigns.md valid and running from an empty folder."""
 
 from __future__ import annotations
 
+import json
+import math
+import re
 import shutil
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -11,6 +16,7 @@ from in_process import run_in_process
 
 from yafs_safetail.commands import campaign as campaign_command
 from yafs_safetail.defaults import DATA_ROOT, DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
+from yafs_safetail.runs.campaign import STATE_FILE, recorded_run_id
 from yafs_safetail.runs.grid import GridError, expand, load_grid
 from yafs_safetail.runs.input_paths import packaged_default, resolve_input
 
@@ -165,3 +171,52 @@ def test_paths_are_read_from_the_grids_folder_not_the_working_folder(folder: Pat
     # Absolute paths are taken as they are.
     absolute = grid_file(folder, f'topology = "{DEFAULT_TOPOLOGY}"\n')
     assert load_grid(absolute)[0].settings["topology"] == str(DEFAULT_TOPOLOGY.resolve())
+
+
+def docs_grid() -> str:
+    """The TOML block under docs/campaigns.md's "The grid"."""
+    text = (REPOSITORY / "docs" / "campaigns.md").read_text()
+    section = text[text.index("## The grid"):]
+    found = re.search(r"```toml\n(.*?)```", section, re.DOTALL)
+    assert found is not None, "docs/campaigns.md: no ```toml block under 'The grid'"
+    return found.group(1)
+
+
+def test_the_docs_grid_is_valid_from_an_empty_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    Path("docgrid.toml").write_text(docs_grid())
+    data = tomllib.loads(docs_grid())
+    specs = load_grid(Path("docgrid.toml"))
+    sizes = [len(values) for values in data["axes"].values()]
+    assert len(specs) == math.prod(sizes) and len({s.run_id for s in specs}) == len(specs)
+    for spec in specs:  # every input file is a packaged default
+        assert Path(spec.settings["topology"]).is_relative_to(DATA_ROOT.resolve())
+
+
+def shrunk(grid: str) -> str:
+    """The docs' grid at a test's budget: ``steps_scale`` 0.013 and no figures, each axis cut to
+    its first value except the topologies (the paths under test). Written back as TOML: the
+    grid's values (texts, numbers, booleans, lists of them) are spelt alike in JSON and TOML."""
+    data = tomllib.loads(grid)
+    data["base"].update(steps_scale=0.013, figures=False)
+    axes = {key: values if key == "topology" else values[:1] for key, values in data["axes"].items()}
+    lines = [f"name = {json.dumps(data['name'])}"] if "name" in data else []
+    for table, entries in (("base", data["base"]), ("axes", axes)):
+        lines += [f"[{table}]", *(f"{key} = {json.dumps(value)}" for key, value in entries.items())]
+    return "\n".join(lines) + "\n"
+
+
+def test_the_docs_grid_runs_from_an_empty_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    Path("docgrid.toml").write_text(shrunk(docs_grid()))
+    # One worker: one TensorFlow import for both runs (the suite runs tests side by side).
+    done = run_in_process(campaign_command.main, "--grid", "docgrid.toml", "--out", "c_doc", "--quiet")
+    assert done.returncode == 0, done.stderr
+    state = json.loads((tmp_path / "c_doc" / STATE_FILE).read_text())
+    topologies = tomllib.loads(docs_grid())["axes"]["topology"]
+    assert len(state["runs"]) == len(topologies) >= 2
+    assert [run["status"] for run in state["runs"]] == ["done"] * len(topologies)
+    for run, topology in zip(state["runs"], topologies, strict=True):
+        assert recorded_run_id(tmp_path / "c_doc" / run["name"]) == run["run_id"]
+        recorded = json.loads((tmp_path / "c_doc" / run["name"] / "run.json").read_text())
+        assert recorded["topology"] == topology  # the packaged default, by the name the grid gave
