@@ -73,6 +73,8 @@ BAD_ENTRIES = {
                                   "axes.redundancy_levels[0]", "x=4 is more than its 3 edge servers"),
     "an outage on no server": ('topology = "topologies/3servers.json"\n', 'down_intervals = ["down.csv"]\n',
                                "axes.down_intervals[0]", "4 is not one of the 3 servers"),
+    "a level above the default topology's servers": ("", "redundancy_levels = [[1, 6]]\n",
+                                                     "axes.redundancy_levels[0]", "x=6 is more than its 5"),
     "a method file that is missing": ("", 'methods = [["missing.py:X"]]\n', "axes.methods[0]", "no such file"),
     "a method that is no Policy": ("", 'methods = [["not_a_policy.py:Plain"]]\n', "axes.methods[0]",
                                    "'Plain' is not a Policy subclass"),

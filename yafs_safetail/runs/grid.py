@@ -424,6 +424,8 @@ def _scenario_problems(values: Mapping[str, list[_Value]], named: set[str], deri
             paired = placements
         elif topology.value in derived:
             paired = [_Value(f"its placement {derived[topology.value]}", None, derived[topology.value])]
+        elif "topology" not in named:  # the default topology, with the default placement
+            paired = [_Value("the default placement", None, str(ExperimentConfig().placement))]
         else:  # its placement is missing: a line of its own already
             continue
         for placement in paired:
