@@ -92,6 +92,7 @@ def test_each_bad_entry_is_one_line_naming_the_grid_and_the_entry(case: str, fol
     assert len(error.value.lines) == 1, error.value.lines
     line = error.value.lines[0]
     assert line.startswith(f"{grid}: {entry}") and problem in line and "\n" not in line, line
+    assert "null" not in line, line  # a default is named in words, not as a missing value
 
 
 def test_every_bad_entry_is_reported_at_once_and_nothing_is_written(folder: Path,

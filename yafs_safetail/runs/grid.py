@@ -333,6 +333,11 @@ class _Value:
     written: Any
     value: Any
 
+    @property
+    def named(self) -> str:
+        """How an error names it: ``axes.topology[1] = "t.json"``, or a default by its words."""
+        return self.where if self.written is None else f"{self.where} = {_shown(self.written)}"
+
 
 def _label(name: str, value: Any) -> str:
     """How one axis value reads in a folder name."""
@@ -432,27 +437,25 @@ def _scenario_problems(values: Mapping[str, list[_Value]], named: set[str], deri
             try:
                 n_servers = load_scenario(topology.value, placement.value).n_servers
             except ValueError as error:
-                problems.append(f"{source}: {topology.where} = {_shown(topology.written)} with "
-                                f"{placement.where}: {' '.join(str(error).split())}")
+                problems.append(f"{source}: {topology.named} with {placement.where}: "
+                                f"{' '.join(str(error).split())}")
                 continue
             if n_servers > MAX_SERVERS:
-                problems.append(f"{source}: {topology.where} = {_shown(topology.written)}: {n_servers} edge "
-                                f"servers; SafeTail supports 1 to {MAX_SERVERS}")
+                problems.append(f"{source}: {topology.named}: {n_servers} edge servers; SafeTail "
+                                f"supports 1 to {MAX_SERVERS}")
                 continue
             for level in levels:
                 above = [x for x in level.value if x > n_servers]
                 if above:
-                    problems.append(f"{source}: {level.where} = {_shown(level.value)} with {topology.where} "
-                                    f"= {_shown(topology.written)}: x={above[0]} is more than its "
-                                    f"{n_servers} edge servers")
+                    problems.append(f"{source}: {level.where} = {_shown(level.value)} with "
+                                    f"{topology.named}: x={above[0]} is more than its {n_servers} edge servers")
             for outages in values.get("down_intervals", []):
                 if outages.value is None:
                     continue
                 try:
                     read_down_file(Path(outages.value), n_servers)
                 except ValueError as error:  # FailureFileError: the file, the row, the field
-                    problems.append(f"{source}: {outages.where} = {_shown(outages.written)} with "
-                                    f"{topology.where} = {_shown(topology.written)}: "
+                    problems.append(f"{source}: {outages.named} with {topology.named}: "
                                     f"{' '.join(str(error).split())}")
     return list(dict.fromkeys(problems))  # a pair met twice is one line
 
