@@ -214,13 +214,15 @@ def test_a_tilde_in_any_path_option_is_the_home_folder(monkeypatch: pytest.Monke
 def test_a_tilde_in_a_grid_files_path_is_the_home_folder(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
     import shutil
 
-    from yafs_safetail.defaults import DEFAULT_TOPOLOGY
+    from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
     from yafs_safetail.runs.grid import expand
 
     monkeypatch.setenv("HOME", str(tmp_path))
     shutil.copy(DEFAULT_TOPOLOGY, tmp_path / "t.json")
-    (spec,) = expand({"topology": "~/t.json"}, {"seed": [0]})
+    shutil.copy(DEFAULT_PLACEMENT, tmp_path / "p.json")
+    (spec,) = expand({"topology": "~/t.json", "placement": "~/p.json"}, {"seed": [0]})
     assert spec.settings["topology"] == str((tmp_path / "t.json").resolve())
+    assert spec.settings["placement"] == str((tmp_path / "p.json").resolve())
 
 
 @pytest.mark.parametrize("quiet", [False, True])
