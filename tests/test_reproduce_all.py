@@ -64,6 +64,7 @@ def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
     assert "| 0 |" in report and "| 1 |" in report  # one diagnostics row per seed
     assert "### Why our ratios may differ" in report
     assert "not scored" not in report  # the paper's setting
+    assert "Your methods" not in report and not (out / "methods.csv").exists()  # none given
     # The scorecard: every use-case-1 number of the paper, calibration and held-out apart.
     assert "## Fidelity scorecard — preset `paper`" in report
     assert "the scorecard is meant for five or more" in report
@@ -89,9 +90,65 @@ def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
     assert len(stated) > 0 and stated["n_seeds"].eq(2).all()
 
 
+NEAREST_FREE = "examples/custom_policy/nearest_free.py:NearestFree"
+
+
+def _row(report: str, title: str, method: str) -> list[str]:
+    """The cells of ``method``'s row in REPORT.md's table under ``### title``."""
+    section = report[report.index(f"### {title}\n"):]
+    section = section[:section.index("LaTeX: ")]
+    rows = [line.strip("| ").split(" | ") for line in section.splitlines() if line.startswith(f"| {method} |")]
+    assert len(rows) == 1, section
+    return rows[0]
+
+
+def test_a_users_policy_in_every_seed_with_intervals_and_ratios(tmp_path: Path) -> None:
+    from test_results_latex import interval_cell
+
+    from yafs_safetail import results
+
+    out = tmp_path / "rep"
+    seeds = (0, 1, 2)  # fewer than the scorecard's five: a note, not an error
+    done = _run_here("--uc", "1", "--seeds", ",".join(map(str, seeds)), "--steps-scale", "0.013",
+                     "--no-figures", "--method", NEAREST_FREE, "--out", str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    report = (out / "REPORT.md").read_text()
+    assert "Only 3 seed(s): the scorecard is meant for five or more." in report
+    summaries = [results.read_summary_csv(out / "uc1-paper" / f"seed{seed}") for seed in seeds]
+    mine = [s[s["method"] == "NearestFree"].iloc[0] for s in summaries]
+    # The section's own latency table holds the policy too, and a table of its own beside
+    # SafeTail and Oracle gives each percentile and its servers per request over the seeds.
+    assert _row(report, "Latency (test phase)", "NearestFree")[1] == "3"
+    for method in ("SafeTail", "Oracle"):
+        assert _row(report, "Your methods beside SafeTail and Oracle", method)[1] == "3"
+    row = _row(report, "Your methods beside SafeTail and Oracle", "NearestFree")
+    for column, metric in enumerate(("p50_s", "p90_s", "p95_s", "p99_s", "mean_n_selected"), start=2):
+        digits = 2 if metric == "mean_n_selected" else 3
+        expected = interval_cell(*results.bootstrap_interval([m[metric] for m in mine]), digits)
+        assert row[column] == expected, (metric, row)
+        assert "[" in row[column] or len({m[metric] for m in mine}) == 1  # an interval over seeds
+    # Its speed-ups over SafeTail and Oracle: per seed, then the geometric mean and t-interval.
+    for reference in ("SafeTail", "Oracle"):
+        row = _row(report, "Your methods' speed-ups over SafeTail and Oracle", f"NearestFree | {reference}")
+        theirs = [s[s["method"] == reference].iloc[0] for s in summaries]
+        for column, percentile in enumerate((50, 90, 95, 99), start=3):
+            ratios = [t[f"p{percentile}_s"] / m[f"p{percentile}_s"] for t, m in zip(theirs, mine, strict=True)]
+            assert row[column] == interval_cell(*results.geometric_interval(ratios), 2)
+    # The same numbers for scripts, and both tables as LaTeX.
+    numbers = pd.read_csv(out / "methods.csv")
+    assert set(numbers["method"]) == {"NearestFree"} and numbers["n_seeds"].eq(3).all()
+    p99 = numbers[numbers["metric"] == "p99_s"].iloc[0]
+    assert p99["mean"] == pytest.approx(sum(m["p99_s"] for m in mine) / 3)
+    assert p99["ci_low"] <= p99["mean"] <= p99["ci_high"]
+    assert {"speedup_over_SafeTail_p99", "speedup_over_Oracle_p50"} <= set(numbers["metric"])
+    for name in ("methods-uc1-paper", "methods-ratios-uc1-paper"):
+        assert (out / "tables" / f"{name}.tex").is_file() and f"tables/{name}.tex" in report
+
+
 def test_unknown_use_case_and_preset_and_repeated_seeds_are_one_line_errors(tmp_path: Path) -> None:
     for args in (("--uc", "4"), ("--preset", "fast"), ("--seeds", "0,1,0"), ("--target-compute", "mean"),
-                 ("--learning-rate", "0")):
+                 ("--learning-rate", "0"), ("--method", "nowhere.py:Policy"),
+                 ("--method", NEAREST_FREE, "--method", NEAREST_FREE)):
         done = _run(*args, "--out", str(tmp_path / "x"))
         assert done.returncode == 2
         assert done.stderr.startswith("error:") and done.stderr.count("\n") == 1

@@ -6,6 +6,7 @@
     python experiments/reproduce_all.py --workers 2                # two runs at a time
     python experiments/reproduce_all.py --engine ray               # on Ray (see docs/campaigns.md)
     python experiments/reproduce_all.py --learning-rate 1e-3 --out results/paper-lr1e-3
+    python experiments/reproduce_all.py --method examples/custom_policy/nearest_free.py:NearestFree
 
 For every (use case, preset, seed) it runs exactly what ``run_usecase.py`` runs, into
 ``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` opens with the fidelity scorecard of
@@ -22,7 +23,12 @@ met, fallbacks) as the first place to look for why, figures across seeds with 95
 ``--figure-format png,pdf``) and the
 figures of the first seed. Every table of the report is also written as LaTeX
 (``OUT/tables/*.tex``, listed at the end of REPORT.md). Seeds must be distinct; the scorecard
-asks for at least five.
+asks for at least five (with fewer it says so and goes on).
+
+--method adds your own Policy (as run_usecase.py's --method) to every run, beside SafeTail and
+the baselines: each use case and preset's section then also gives its latency (median, p90,
+p95, p99) and servers per request beside SafeTail's and Oracle's, and its speed-ups over both,
+with 95% intervals over the seeds (also in ``OUT/methods.csv``).
 
 The runs form one campaign (yafs_safetail/runs/campaign.py): rerunning the same command on the
 same --out resumes an interrupted reproduction and recomputes no finished run (a run folder
@@ -50,7 +56,13 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.defaults import PRESET_NAMES
 from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.runs.config import ExperimentError, LearnerOverrides, add_options
+from yafs_safetail.runs.config import (
+    ExperimentError,
+    LearnerOverrides,
+    Task,
+    add_options,
+    setting_of,
+)
 from yafs_safetail.runs.engine_options import add_engine_options
 
 
@@ -60,6 +72,21 @@ def _presets(text: str) -> tuple[str, ...]:
     if not names or unknown:
         raise argparse.ArgumentTypeError(f"unknown preset(s) {unknown}; valid: {', '.join(PRESET_NAMES)}")
     return names
+
+
+def _check_methods(specs: Sequence[str]) -> None:
+    """Load every ``--method`` policy once here, so that a bad one is one line before any run
+    starts rather than a failure of every run.
+
+    Raises:
+        ExperimentError: two policies with one name (a file or class that cannot be loaded
+            raises the registry's PolicyError, also one line).
+    """
+    load = setting_of(next(f for f in dataclasses.fields(Task) if f.name == "methods")).from_cli
+    names = [method.name for method in (load(specs) if load is not None else ())]
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise ExperimentError(f"--method: two methods are named {repeated[0]!r}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -81,6 +108,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
                 learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
                                        "report then says these are not the presets' results)"})
+    add_options(parser, only=("methods",),
+                methods={"help": "add your own Policy to every run and to the report (also "
+                                 "module:Class; repeatable; named after the class unless NAME= is given)"})
     add_options(parser, only=("figures", "figure_formats"), figures={"help": "skip the per-run figures"})
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders in --out that hold another configuration")
@@ -92,6 +122,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")
     configure_verbosity(args)
     # The arguments are checked: now the campaign and the report, with NumPy and pandas.
+    _check_methods(args.methods)
     from yafs_safetail.results.reproduction import RUN_FOLDER, write_report
     from yafs_safetail.runs.campaign import engine_free_command, run_campaign
     from yafs_safetail.runs.grid import expand
@@ -105,6 +136,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "figure_formats": args.figure_formats}
     overridable = ("target_compute", *(item.name for item in dataclasses.fields(LearnerOverrides)))
     base.update({name: getattr(args, name) for name in overridable if getattr(args, name) is not None})
+    if args.methods:  # only when given, so that the runs without keep their folders' run ids
+        base["methods"] = list(args.methods)
     specs = expand(base,
                    {"use_case": list(args.uc), "preset": list(args.preset), "seed": list(args.seeds)},
                    name=RUN_FOLDER, source="reproduce_all.py")

@@ -27,12 +27,16 @@ from yafs_safetail.figures_multiseed import (
     SERVERS_BANDS_STEM,
     draw_multiseed_figures,
 )
-from yafs_safetail.results import feasibility, fidelity, latex
+from yafs_safetail.results import feasibility, fidelity, latex, seed_tables
+from yafs_safetail.results.stats import metrics_over_seeds, speedups_over_seeds
 
 #: Each run's folder under the reproduction's folder.
 RUN_FOLDER = "uc{use_case}-{preset}/seed{seed}"
 REPORT_FILE = "REPORT.md"
 SPEEDUPS_FILE = "speedups.csv"
+#: The users' own policies (``--method``): their latency and speed-ups over seeds, one row per
+#: use case, preset, method and quantity (written only when there are such policies).
+METHODS_FILE = "methods.csv"
 #: The first seed's figures REPORT.md shows, by panel (figures.FIGURE_STEMS names their files).
 FIGURE_CAPTIONS = {
     "a": "latency comparison with target and baselines",
@@ -129,6 +133,8 @@ TABLE_NAMES = {
     "latency": "latency-uc{use_case}-{preset}",
     "ratios": "ratios-uc{use_case}-{preset}",
     "learner": "learner-uc{use_case}-{preset}",
+    "methods": "methods-uc{use_case}-{preset}",
+    "methods_ratios": "methods-ratios-uc{use_case}-{preset}",
     "scorecard": "fidelity-{preset}-{part}",
     "feasibility": "feasibility-{preset}",
 }
@@ -146,19 +152,59 @@ def _table_block(title: str, markdown: str, tex_name: str) -> list[str]:
     return [f"### {title}", "", markdown.rstrip("\n"), "", _tex_pointer(tex_name), ""]
 
 
+def _users_methods(use_case: int, preset: str, folders: Sequence[Path]
+                   ) -> tuple[list[str], dict[str, str], pd.DataFrame]:
+    """The users' own policies (``--method``) beside SafeTail and Oracle over the seeds:
+    REPORT.md's lines, the LaTeX tables (name -> source) and ``methods.csv``'s rows (nothing
+    at all when the runs hold no such policy)."""
+    summaries = [results.read_summary_csv(f) for f in folders]
+    theirs = seed_tables.user_methods(m for summary in summaries for m in summary["method"])
+    if not theirs:
+        return [], {}, pd.DataFrame()
+    stats = metrics_over_seeds(summaries, methods=[*seed_tables.REFERENCES, *theirs])
+    ratios = speedups_over_seeds(summaries, theirs, seed_tables.REFERENCES)
+    latency, speedups = seed_tables.latency_table(stats), seed_tables.speedup_table(ratios)
+    names = {key: TABLE_NAMES[key].format(use_case=use_case, preset=preset)
+             for key in ("methods", "methods_ratios")}
+    where = f"Use case {use_case}, preset {preset}"
+    tables = {
+        names["methods"]: latex.table_latex(
+            latency, label=f"tab:{names['methods']}",
+            caption=f"{where}: your methods beside SafeTail and Oracle. {seed_tables.LATENCY_NOTE}"),
+        names["methods_ratios"]: latex.table_latex(
+            speedups, label=f"tab:{names['methods_ratios']}",
+            caption=f"{where}: your methods' speed-ups over SafeTail and Oracle. {seed_tables.SPEEDUP_NOTE}"),
+    }
+    lines = [
+        *_table_block("Your methods beside SafeTail and Oracle",
+                      seed_tables.markdown(seed_tables.LATENCY_NOTE, latency), names["methods"]),
+        *_table_block("Your methods' speed-ups over SafeTail and Oracle",
+                      seed_tables.markdown(seed_tables.SPEEDUP_NOTE, speedups), names["methods_ratios"]),
+    ]
+    ratios = ratios.assign(metric=[f"speedup_over_{r}_p{p}" for r, p in zip(ratios["reference"],
+                                                                           ratios["percentile"], strict=True)])
+    rows = pd.concat([stats[stats["method"].isin(theirs)], ratios[list(stats.columns)]], ignore_index=True)
+    rows.insert(0, "use_case", use_case)
+    rows.insert(1, "preset", preset)
+    return lines, tables, rows
+
+
 def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Path,
-             figure_formats: Sequence[str]) -> tuple[list[str], dict[str, str]]:
-    """One use case and preset: REPORT.md's lines and the LaTeX tables (name -> source)."""
+             figure_formats: Sequence[str]) -> tuple[list[str], dict[str, str], pd.DataFrame]:
+    """One use case and preset: REPORT.md's lines, the LaTeX tables (name -> source) and the
+    users' methods' rows of ``methods.csv``."""
     run = results.read_run_json(folders[0])
     stats = results.aggregate_summaries(folders)
     ratios = results.aggregate_speedups(folders)
     diagnostics = _learner_diagnostics(folders)
+    theirs_lines, theirs_tables, theirs_rows = _users_methods(use_case, preset, folders)
     names = {key: TABLE_NAMES[key].format(use_case=use_case, preset=preset)
              for key in ("latency", "ratios", "learner")}
     tables = {
         names["latency"]: latex.latency_latex(stats, use_case=use_case,
                                               use_case_name=run.use_case_name, preset=preset),
         names["ratios"]: latex.comparison_latex(ratios, use_case=use_case, preset=preset),
+        **theirs_tables,  # in the order REPORT.md shows them
         names["learner"]: latex.table_latex(
             diagnostics, label=f"tab:learner-uc{use_case}-{preset}", column_format="rrrrrr",
             caption=f"Use case {use_case}, preset {preset}: what SafeTail did in each seed "
@@ -178,6 +224,7 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
         *_table_block("Latency (test phase)", results.aggregate_markdown(stats), names["latency"]),
         *_table_block("Our ratios beside the paper's", results.comparison_markdown(ratios),
                       names["ratios"]),
+        *theirs_lines,
         *_table_block("What SafeTail did", "\n".join(results.frame_markdown(diagnostics)),
                       names["learner"]),
         "### Why our ratios may differ (read off these runs)",
@@ -198,7 +245,7 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
         if png.is_file():
             lines.append(f"({panel}) {caption}: ![{caption}]({os.path.relpath(png, report_dir)})")
             lines.append("")
-    return lines, tables
+    return lines, tables, theirs_rows
 
 
 def _header(command: str, differences: Sequence[str], learning_rate: float | None) -> list[str]:
@@ -301,6 +348,7 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
     sections: list[str] = []
     section_tables: dict[str, str] = {}
     speedups = []
+    methods_rows: list[pd.DataFrame] = []  # the users' own policies' numbers (methods.csv)
     differences: list[str] = []  # how any run's setting departs from the paper's
     summaries: dict[str, dict[int, list[pd.DataFrame]]] = {p: {} for p in presets}
     worlds: dict[str, list[feasibility.WorldRun]] = {p: [] for p in presets}
@@ -308,9 +356,10 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
         for preset in presets:
             folders = [out / RUN_FOLDER.format(use_case=use_case, preset=preset, seed=seed)
                        for seed in seeds]
-            lines, tables = _section(use_case, preset, folders, out, figure_formats)
+            lines, tables, theirs = _section(use_case, preset, folders, out, figure_formats)
             sections += lines
             section_tables.update(tables)
+            methods_rows.append(theirs)
             summaries[preset][use_case] = [results.read_summary_csv(f) for f in folders]
             for folder in folders:
                 differences += [d for d in results.setting_differences(
@@ -330,4 +379,7 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
     results.write_text_atomic(out / REPORT_FILE, report)
     all_speedups = pd.concat(speedups, ignore_index=True)
     results.write_text_atomic(out / SPEEDUPS_FILE, all_speedups.to_csv(index=False))
+    theirs = [rows for rows in methods_rows if not rows.empty]
+    if theirs:
+        results.write_text_atomic(out / METHODS_FILE, pd.concat(theirs, ignore_index=True).to_csv(index=False))
     return out / REPORT_FILE

@@ -337,17 +337,75 @@ def aggregate_summaries(directories: Sequence[str | os.PathLike[str]]) -> pd.Dat
     Raises:
         ResultsFileError: a folder or file is missing or bad, or the runs mix use cases.
     """
-    runs = _load_runs(directories)
-    methods = sort_methods(m for _, summary in runs for m in summary["method"])
+    return metrics_over_seeds([summary for _, summary in _load_runs(directories)], AGGREGATE_METRICS)
+
+
+#: What a method's latency table over seeds shows (REPORT.md's users' methods, a campaign's
+#: ``latency.md``): the test phase's percentiles and the servers a request went to.
+SEED_TABLE_METRICS: tuple[str, ...] = ("p50_s", "p90_s", "p95_s", "p99_s", "mean_n_selected")
+#: Columns of :func:`metrics_over_seeds` (and :func:`aggregate_summaries`).
+INTERVAL_COLUMNS: tuple[str, ...] = ("method", "metric", "mean", "ci_low", "ci_high", "n_seeds")
+
+
+def metrics_over_seeds(summaries: Sequence[pd.DataFrame],
+                       metrics: Sequence[str] = SEED_TABLE_METRICS,
+                       methods: Sequence[str] | None = None) -> pd.DataFrame:
+    """Per method and metric, the mean over seeds and a 95% percentile-bootstrap interval
+    (:func:`bootstrap_interval`).
+
+    Args:
+        summaries: one ``summary.csv`` table per seed (:func:`summarize`), of one setting.
+        metrics: ``SUMMARY_COLUMNS`` to aggregate.
+        methods: the methods to keep (default: every method of any seed); report order.
+
+    Returns:
+        Columns ``INTERVAL_COLUMNS``; ``n_seeds`` counts the seeds that ran the method.
+    """
+    present = [m for summary in summaries for m in summary["method"]]
     rows = []
-    for method in methods:
-        for metric in AGGREGATE_METRICS:
+    for method in sort_methods(present if methods is None else [m for m in methods if m in present]):
+        for metric in metrics:
             values = []
-            for _, summary in runs:
+            for summary in summaries:
                 part = summary[summary["method"] == method]
                 if not part.empty:
                     values.append(float(part[metric].iloc[0]))
             mean, low, high = bootstrap_interval(values)
             rows.append({"method": method, "metric": metric, "mean": mean, "ci_low": low,
                          "ci_high": high, "n_seeds": len(values)})
-    return pd.DataFrame(rows, columns=["method", "metric", "mean", "ci_low", "ci_high", "n_seeds"])
+    return pd.DataFrame(rows, columns=list(INTERVAL_COLUMNS))
+
+
+#: Columns of :func:`speedups_over_seeds`.
+SPEEDUP_INTERVAL_COLUMNS: tuple[str, ...] = (
+    "method", "reference", "percentile", "mean", "ci_low", "ci_high", "n_seeds")
+
+
+def speedups_over_seeds(summaries: Sequence[pd.DataFrame], methods: Sequence[str],
+                        references: Sequence[str]) -> pd.DataFrame:
+    """Each method's speed-up over each reference at every percentile, computed within each
+    seed and combined as :func:`aggregate_speedups` does the paper's ratios: the geometric mean
+    over seeds and a 95% t-interval on the log scale (:func:`geometric_interval`).
+
+    Args:
+        summaries: one ``summary.csv`` table per seed, of one setting.
+        methods: the methods whose speed-ups are wanted (e.g. a user's policies).
+        references: what they are compared with (e.g. SafeTail and Oracle); a reference a seed
+            did not run gives NaN there, left out of the mean.
+
+    Returns:
+        Columns ``SPEEDUP_INTERVAL_COLUMNS``; ``mean`` > 1: the method is faster than the
+        reference. ``n_seeds`` counts the seeds with a ratio.
+    """
+    rows = []
+    for method in methods:
+        for reference in references:
+            if reference == method:
+                continue
+            for percentile in PERCENTILES:
+                values = [speedup(summary, method, reference, percentile) for summary in summaries]
+                mean, low, high = geometric_interval(values)
+                rows.append({"method": method, "reference": reference, "percentile": percentile,
+                             "mean": mean, "ci_low": low, "ci_high": high,
+                             "n_seeds": sum(math.isfinite(v) and v > 0 for v in values)})
+    return pd.DataFrame(rows, columns=list(SPEEDUP_INTERVAL_COLUMNS))
