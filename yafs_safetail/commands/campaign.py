@@ -12,8 +12,10 @@ entry is one error line, the exit status 2, and nothing is written. Each run goe
 into ``OUT/<axis values>-<run id>/``; rerunning the same command resumes where it stopped and
 recomputes nothing finished. Progress goes to stderr (none with --quiet but failed runs) and
 ``OUT/campaign.log``, each run's state to ``OUT/campaign.json``, each run's own log to its
-``run.log``; stdout gets ``results: OUT`` at the end (--quiet: ``OUT`` alone); the exit status
-is 1 when a run failed.
+``run.log``. At the end the latency of every method of the finished runs (median, p90, p95,
+p99, servers per request; mean over seeds and 95% bootstrap interval), one table per value of
+the grid's axes other than the seed, goes to ``OUT/latency.md`` and ``OUT/latency.csv`` and, with
+``results: OUT``, to stdout (--quiet: ``OUT`` alone); the exit status is 1 when a run failed.
 """
 
 from __future__ import annotations
@@ -59,9 +61,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = engine_free_command(invocation("experiments/campaign.py"), sys.argv[1:] if argv is None else argv)
     result = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    from yafs_safetail.results.seed_tables import write_campaign_latency
+    from yafs_safetail.runs.campaign import DONE, EARLIER
+
+    table = write_campaign_latency(args.out, {run.spec.name: run.spec.settings for run in result.runs},
+                                   [run.spec.name for run in result.runs if run.status in (DONE, EARLIER)])
     if result.failed:
         return 1
-    # The table of runs went to stderr with the progress; stdout says where they are.
-    print_result(args, args.out, f"results: {args.out}")
+    # The table of runs went to stderr with the progress; stdout gets the latency and the folder.
+    print_result(args, args.out, f"{table}results: {args.out}")
     return 0
 

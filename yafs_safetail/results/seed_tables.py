@@ -34,6 +34,7 @@ from yafs_safetail.results.files import (
 )
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 from yafs_safetail.results.report import frame_markdown
+from yafs_safetail.results.run_json import read_run_json
 from yafs_safetail.results.stats import SEED_TABLE_METRICS, metrics_over_seeds
 
 #: Over the latency table: what its cells are.
@@ -177,7 +178,8 @@ def campaign_latency(out: Path, settings: Mapping[str, Mapping[str, Any]],
     frames = []
     for names in groups.values():
         values = {axis: settings[names[0]].get(axis) for axis in axes}
-        seeds = ", ".join(str(settings[n].get(SEED_FIELD, "-")) for n in names)
+        # From run.json: a grid that does not set the seed ran the default one.
+        seeds = ", ".join(str(read_run_json(out / n).seed) for n in names)
         stats = metrics_over_seeds([read_summary_csv(out / n) for n in names])
         title = ", ".join(f"{axis}={_shown(value)}" for axis, value in values.items()) or "all runs"
         lines += [f"## {title} (seeds {seeds})", "", *frame_markdown(latency_table(stats)), ""]
