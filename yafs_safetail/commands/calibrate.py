@@ -30,6 +30,11 @@ from yafs_safetail.cli import (
     positive_int,
     print_result,
 )
+from yafs_safetail.runs.engine_options import (
+    CALIBRATION_WORKER_BYTES,
+    default_workers_help,
+    local_workers,
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -41,8 +46,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="a JSON file mapping each parameter (load_start, load_peak_users, "
                              "bandwidth_share_exponent, fallback_compute_multiple) to its values "
                              "(default: the shipped grid, docs/calibration.md)")
-    parser.add_argument("--workers", type=positive_int, default=2,
-                        help="parallel processes (default 2; the result does not depend on it)")
+    parser.add_argument("--workers", type=positive_int, default=None,
+                        help=f"parallel processes (default: {default_workers_help(CALIBRATION_WORKER_BYTES)}; "
+                             "the result does not depend on it)")
     parser.add_argument("--out", type=Path, default=Path("results/calibration"),
                         help="output folder (default results/calibration)")
     parser.add_argument("--apply", action="store_true",
@@ -57,7 +63,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = shlex.join([*invocation("experiments/calibrate.py"), *(sys.argv[1:] if argv is None else argv)])
     seeds = tuple(seed_set("world_calibration") if args.seeds is None else args.seeds)
     grid = GRID if args.grid is None else read_grid(args.grid)
-    document = calibrate(CalibrationConfig(seeds=seeds, grid=grid, workers=args.workers,
+    workers = local_workers(args.workers, CALIBRATION_WORKER_BYTES)
+    document = calibrate(CalibrationConfig(seeds=seeds, grid=grid, workers=workers,
                                            out_dir=args.out, apply=args.apply, command=command))
     provenance = document["provenance"]
     print_result(args, args.out,

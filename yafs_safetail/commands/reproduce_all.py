@@ -3,7 +3,7 @@
     python experiments/reproduce_all.py                          # UC 1-3, seeds 0-4, paper preset
     python experiments/reproduce_all.py --preset paper,paper-literal,tuned --seeds 0,1,2,3,4,5
     python experiments/reproduce_all.py --steps-scale 0.1 --out results/quick
-    python experiments/reproduce_all.py --workers 2                # two runs at a time
+    python experiments/reproduce_all.py --workers 1                # one run at a time (less memory)
     python experiments/reproduce_all.py --engine ray               # on Ray (see docs/campaigns.md)
     python experiments/reproduce_all.py --learning-rate 1e-3 --out results/paper-lr1e-3
     python experiments/reproduce_all.py --method examples/custom_policy/nearest_free.py:NearestFree
@@ -34,7 +34,9 @@ The runs form one campaign (yafs_safetail/runs/campaign.py): rerunning the same 
 same --out resumes an interrupted reproduction and recomputes no finished run (a run folder
 records its run id, a hash of its configuration and the code version); a run that fails is
 reported and the others go on (exit status 1, no report). Progress goes to stderr and
-``OUT/campaign.log``, each run's state to ``OUT/campaign.json``.
+``OUT/campaign.log``, each run's state to ``OUT/campaign.json``. Runs go as many at a time as
+this machine's CPUs and available memory allow (1 GB a run; --workers N for fewer); the files
+are the same for any number.
 """
 
 from __future__ import annotations

@@ -170,7 +170,8 @@ def run_campaign(specs: Sequence[RunSpec], out: Path, *, engine: str = "local",
         specs: the runs (``runs.grid.expand`` or ``load_grid``).
         out: the campaign folder.
         engine: ``"local"`` or ``"ray"``.
-        workers: runs at a time (local default 1; Ray default: every CPU of the cluster).
+        workers: runs at a time (local default: as many as the usable CPUs and the available
+            memory allow, ``engine_options.local_workers``; Ray: every CPU of the cluster).
         ray_address: an existing Ray cluster (``HOST:PORT``); implies the Ray engine.
         command: recorded in every run's ``run.json`` (keep engine options out of it, so the
             files do not depend on the engine: :func:`engine_free_command`).

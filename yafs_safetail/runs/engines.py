@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from yafs_safetail.cli import raise_terminated
-from yafs_safetail.runs.engine_options import ENGINES
+from yafs_safetail.runs.engine_options import ENGINES, local_workers
 from yafs_safetail.runs.grid import RunSpec, config_run_id, make_config
 from yafs_safetail.runs.output import StagedOutput
 
@@ -363,7 +363,7 @@ def make_engine(engine: str, workers: int | None, ray_address: str | None) -> Lo
         return RayEngine(workers, ray_address)
     if engine != "local":
         raise ValueError(f"--engine: unknown engine {engine!r}; valid: {', '.join(ENGINES)}")
-    return LocalEngine(workers or 1)
+    return LocalEngine(local_workers(workers))
 
 
 def cancel_all(engine: LocalEngine | RayEngine, handles: Iterable[Any]) -> None:
