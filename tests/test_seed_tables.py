@@ -38,9 +38,10 @@ def test_a_campaign_ends_with_latency_over_seeds_per_setting(tmp_path: Path) -> 
     out = tmp_path / "c"
     done = run_in_process(campaign.main, "--grid", grid, "--out", out)
     assert done.returncode == 0, done.stderr[-2000:]
-    # Printed and written alike: one table per redundancy setting, each over both seeds.
+    # Printed and written alike (then the folder): one table per redundancy setting, each over
+    # both seeds.
     text = (out / "latency.md").read_text()
-    assert done.stdout == text
+    assert done.stdout == f"{text}results: {out}\n"
     assert text.count("## redundancy_levels=") == 2 and text.count("(seeds 0, 1)") == 2
     table = pd.read_csv(out / "latency.csv")
     assert set(table["redundancy_levels"]) == {"[1]", "[2]"} and table["n_seeds"].eq(2).all()
