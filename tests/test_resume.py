@@ -182,3 +182,39 @@ def test_the_checkpoint_is_gone_before_the_results_appear(tmp_path, monkeypatch)
                               checkpoint_every_s=0.0)
     run_experiment(config)
     assert seen == [False] and (tmp_path / "run" / "requests.csv").is_file()
+
+
+def test_a_run_stopped_by_a_policys_bug_leaves_no_checkpoint(tmp_path):
+    # Later chooses well on the first requests (so it passes the check at run start) and
+    # returns no server from request 20 on: found in its test simulation, after SafeTail's
+    # training wrote its checkpoint. --resume could not get past it, and fixing the file gives
+    # another run id: the checkpoint would only be a hidden folder of megabytes.
+    from yafs_safetail.methods.policy import PolicyError
+    from yafs_safetail.methods.registry import UserMethod
+
+    written: list[Path] = []
+    config = ExperimentConfig(use_case=1, out_dir=tmp_path / "run", steps_scale=0.02,
+                              redundancy_levels=(1,), figures=False, progress=False, workers=1,
+                              checkpoint_every_s=0.0,
+                              methods=(UserMethod(f"{Path(__file__).parent / 'bad_policies.py'}:Later"),))
+    real_write = checkpoint_module.write_checkpoint
+
+    def write(target, checkpoint):  # type: ignore[no-untyped-def]
+        real_write(target, checkpoint)
+        written.append(checkpoint_folder(target))
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(checkpoint_module, "write_checkpoint", write)
+        with pytest.raises(PolicyError, match="Later: invalid subset"):
+            run_experiment(config)
+    assert written and all(folder == checkpoint_folder(config.out_dir) for folder in written)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("error", "resumable"), [
+    (KeyboardInterrupt(), True), (OSError(28, "No space left on device"), True),
+    (ChildProcessError("worker killed"), True), (ValueError("bad policy"), False),
+    (IndexError("a bug"), False),
+])
+def test_only_a_stop_from_outside_keeps_the_checkpoint(error, resumable):
+    assert checkpoint_module.resumable_after(error) is resumable

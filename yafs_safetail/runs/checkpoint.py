@@ -14,7 +14,8 @@ The checkpoint belongs to one configuration (the campaign run id of its settings
 version, :func:`yafs_safetail.runs.grid.config_run_id`); ``--resume`` with any other refuses.
 The folder carries a marker file, and only a folder with the marker is ever replaced or
 removed; it is removed when the run's results are complete, just before they are renamed
-into place.
+into place, and when the run fails in a way ``--resume`` cannot get past
+(:func:`resumable_after`).
 
 The state is a pickle: it is read back only from a folder this tool made (the marker), by the
 same code version, never from elsewhere.
@@ -80,6 +81,19 @@ class TrainingCheckpoint:
 
     run_id: str
     methods: dict[str, MethodTraining] = field(default_factory=dict)
+
+
+def resumable_after(error: BaseException) -> bool:
+    """Whether a run stopped by ``error`` can be continued from its checkpoint.
+
+    Yes when it was stopped from outside (Ctrl-C, SIGTERM, a worker killed) or by the system
+    (``OSError``: a full disk, an unwritable folder): the same command with ``--resume``
+    continues once that is past. No for any other error: bad input or a bug (a user's policy
+    that returns no server, raises, ...) stops the same command again at the same place, and
+    the fix (an edited policy file) changes the run id the checkpoint is tied to, so
+    ``--resume`` would refuse it: such a checkpoint is only a hidden megabyte-sized folder.
+    """
+    return not isinstance(error, Exception) or isinstance(error, OSError)
 
 
 def checkpoint_folder(target: Path) -> Path:

@@ -49,7 +49,7 @@ from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
 from yafs_safetail.runs.budget import check_budget
-from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint
+from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint, resumable_after
 from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
 from yafs_safetail.runs.figures_worker import FiguresWorker, start_figures_worker
 from yafs_safetail.runs.learners import check_learners, learner_names, make_learners
@@ -190,7 +190,10 @@ def run_experiment(config: ExperimentConfig) -> ExperimentReport:
                 discard_checkpoint(output.target)
             output.publish()
     except BaseException as error:
-        if checkpoints is not None and checkpoints.written:
+        if checkpoints is not None and checkpoints.wrote and not resumable_after(error):
+            # Nothing --resume could continue: the checkpoint is this run's own, so it goes.
+            discard_checkpoint(output.target)
+        elif checkpoints is not None and checkpoints.written:
             error.add_note(f"training checkpoint kept in {checkpoint_folder(output.target)}: "
                            "the same command with --resume continues it")
         raise

@@ -49,6 +49,7 @@ class Checkpoints:
         trained: the methods whose training has ended, as the next checkpoint records them.
         written: whether this run has written (or resumed from) a checkpoint that
             ``--resume`` can continue.
+        wrote: whether this run itself has written the checkpoint (not only resumed from one).
     """
 
     target: Path
@@ -58,6 +59,7 @@ class Checkpoints:
     trained: dict[str, MethodTraining] = field(default_factory=dict)
     last_written: float = field(default_factory=time.perf_counter)
     written: bool = False
+    wrote: bool = False
 
     @classmethod
     def for_run(cls, config: ExperimentConfig, trains: bool, target: Path) -> Checkpoints | None:
@@ -100,7 +102,7 @@ class Checkpoints:
             self.trained[policy.name] = stand
         # Set first: a kill during the write leaves the previous checkpoint or this one, both
         # of which --resume continues.
-        self.written = True
+        self.written = self.wrote = True
         # Through the module: tests stop a run right after a chosen checkpoint.
         checkpoint.write_checkpoint(self.target, TrainingCheckpoint(
             run_id=self.run_id, methods={**self.trained, policy.name: stand}))
