@@ -197,6 +197,24 @@ def test_the_default_folder_names_preset_seed_and_scale():
     assert faster.learning_rate == 1e-3
 
 
+def test_the_default_folder_names_each_added_method(tmp_path):
+    # A second policy's run must not stop at "holds an earlier run" of the first's.
+    module = run_usecase_module()
+    example = REPOSITORY / "examples" / "custom_policy" / "nearest_free.py"
+    odd = tmp_path / "odd.py"  # a name that is no folder name as it stands
+    odd.write_text("from yafs_safetail.methods import Policy\n\n"
+                   "class Odd(Policy):\n    name = 'my/odd policy'\n")
+    one = module.parse_args(["--uc", "1", "--method", f"{example}:NearestFree"])
+    assert one.out_dir == Path("results/uc1-paper-s0+NearestFree")
+    two = module.parse_args(["--uc", "1", "--steps-scale", "0.1", "--method", f"{example}:NearestFree",
+                             "--method", f"Mine={example}:NearestFree", "--method", f"{odd}:Odd"])
+    assert two.out_dir == Path("results/uc1-paper-s0-x0.1+NearestFree+Mine+my_odd_policy")
+    # A run without --method keeps its name; --out is taken as given.
+    assert module.parse_args(["--uc", "1"]).out_dir == Path("results/uc1-paper-s0")
+    given = module.parse_args(["--uc", "1", "--method", f"{example}:NearestFree", "--out", "mine"])
+    assert given.out_dir == Path("mine")
+
+
 def test_the_default_folder_names_a_topology_other_than_the_papers(tmp_path, monkeypatch):
     module = run_usecase_module()
     topologies = REPOSITORY / "topologies"

@@ -21,6 +21,8 @@ CSVs under yafs/ (about 70 MB for a full UC1 run, so only on request).
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import re
 import shlex
 import sys
 from collections.abc import Sequence
@@ -56,8 +58,8 @@ def _parser() -> ArgumentParser:
                          "help": "results folder (default results/uc<N>-<preset>-s<seed>, with "
                                  "-lr<rate> after the preset with --learning-rate, then "
                                  "-<topology file name> with a --topology other than the paper's, "
-                                 "and -x<scale> at the end with --steps-scale); never replaced "
-                                 "unless --overwrite"},
+                                 "-x<scale> after the seed with --steps-scale, and +<name> at the "
+                                 "end for each --method); never replaced unless --overwrite"},
                 placement={"default": None})
     yafs_csv = parser.add_mutually_exclusive_group()
     add_options(yafs_csv, only=("write_yafs_csv",))
@@ -70,16 +72,19 @@ def _parser() -> ArgumentParser:
     return parser
 
 
-def default_out_dir(args: argparse.Namespace) -> Path:
+def default_out_dir(args: argparse.Namespace, method_names: Sequence[str] = ()) -> Path:
     """The results folder of a run without ``--out``.
 
-    ``results/uc<N>-<preset>[-lr<rate>][-<topology>]-s<seed>[-x<scale>]``. The topology is in
-    the name so that a run on another topology does not land in the paper topology's folder
-    and stop at "holds an earlier run"; its file name (without ``.json``) appears only for a
-    topology other than the paper's, so the paper's runs keep the names the docs and tests use.
+    ``results/uc<N>-<preset>[-lr<rate>][-<topology>]-s<seed>[-x<scale>][+<method>...]``. The
+    topology is in the name so that a run on another topology does not land in the paper
+    topology's folder and stop at "holds an earlier run"; its file name (without ``.json``)
+    appears only for a topology other than the paper's, so the paper's runs keep the names the
+    docs and tests use. Each ``--method`` adds ``+<its name>`` for the same reason: a second
+    policy's run gets a folder of its own, and a run without one keeps the plain name.
 
     Args:
         args: the parsed command line (named as ExperimentConfig's fields).
+        method_names: the names of the run's added methods (``--method``), in order.
 
     Returns:
         The folder, relative to the working folder.
@@ -90,7 +95,10 @@ def default_out_dir(args: argparse.Namespace) -> Path:
     # still the paper's.
     paper_topology = Path(args.topology).resolve() == DEFAULT_TOPOLOGY.resolve()
     topology = "" if paper_topology else f"-{Path(args.topology).stem}"
-    return Path("results") / f"uc{args.use_case}-{args.preset}{rate}{topology}-s{args.seed}{scale}"
+    # A policy's name is the user's (a class attribute may hold spaces or slashes): only the
+    # characters that are safe in a folder name on every system stay.
+    methods = "".join(f"+{re.sub(r'[^A-Za-z0-9._=-]+', '_', name)}" for name in method_names)
+    return Path("results") / f"uc{args.use_case}-{args.preset}{rate}{topology}-s{args.seed}{scale}{methods}"
 
 
 def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
@@ -114,6 +122,8 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
         args, placement=placement, out_dir=args.out_dir or default_out_dir(args), command=command,
         # Bars only where someone watches; elsewhere the phases' 10% lines say the same.
         progress=not args.quiet and is_terminal(sys.stderr))
+    if args.out_dir is None and config.methods:  # their names are known once they are loaded
+        config = dataclasses.replace(config, out_dir=default_out_dir(args, [m.name for m in config.methods]))
     return config
 
 
