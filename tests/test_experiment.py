@@ -206,3 +206,21 @@ def test_bad_seed_is_refused(tmp_path, seed):
 def test_bad_steps_scale_is_refused(tmp_path, scale):
     with pytest.raises(ExperimentError, match="--steps-scale"):
         run_experiment(tiny_config(tmp_path / "run", steps_scale=scale))
+
+
+def test_checking_users_policies_leaves_the_world_as_drawn(tmp_path):
+    # Vandal writes zeros into every array of the observation it gets; the check at run start
+    # gives it one, and the world every method replays must not see it.
+    from yafs_safetail.methods.registry import UserMethod
+    from yafs_safetail.runs.experiment import _check
+    from yafs_safetail.runs.world_recipe import TEST, make_world
+
+    config = tiny_config(tmp_path / "run",
+                         methods=(UserMethod(f"{Path(__file__).parent / 'bad_policies.py'}:Vandal"),))
+    checked = _check(config).test_world
+    fresh = make_world(config, TEST)
+    for step in (0, 1):
+        assert checked.observation(step, checked.background_users[step]) == \
+            fresh.observation(step, fresh.background_users[step])
+    assert np.array_equal(checked.median_propagation_s, fresh.median_propagation_s)
+    assert checked.median_propagation_s.min() > 0

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods import MinLoadX, Oracle, Policy, PolicyError, RandX, make_baseline
 from yafs_safetail.methods.registry import (
     UserMethod,
@@ -98,3 +99,59 @@ def test_a_policy_whose_constructor_does_not_fit_is_named(tmp_path):
     method = UserMethod(f"{path}:NeedsMore")
     with pytest.raises(PolicyError, match=r"cannot construct NeedsMore\(n_servers, rng\)"):
         method.make(5, np.random.default_rng(0))
+
+
+BAD_POLICIES = Path(__file__).resolve().parent / "bad_policies.py"
+
+
+def observation_of_five_servers() -> Observation:
+    five = np.arange(5)
+    return Observation(
+        server_uplink_bps=np.full(5, 2e7), server_downlink_bps=np.full(5, 2e7),
+        server_memory_util=np.full(5, 0.1), server_cpu_util=np.full(5, 0.1),
+        server_active_users=five % 3, server_median_propagation_s=0.01 * (five + 1),
+        input_bytes=1e5, est_output_bytes=1e4, gamma=np.zeros(0), user_location=np.zeros(2),
+        user_uplink_bps=2e7, user_downlink_bps=2e7, server_max_load=np.full(5, 4), step=0)
+
+
+@pytest.mark.parametrize(("name", "fragments"), [
+    ("Empty", ["Empty.choose() returned []", "no server", "0..4"]),
+    ("OutOfRange", ["returned [5]", "server 5 does not exist", "0..4"]),
+    ("Twice", ["returned (1, 1)", "server 1 is chosen twice"]),
+    ("Mask", ["a mask of booleans", "np.flatnonzero"]),
+    ("Text", ["returned '0'", "not a list of server indices", "type str"]),
+    ("Raises", ["Raises.choose() raised IndexError", "bad_policies.py line"]),
+    ("Hedger", ["dispatch 'hedge'", "the single-user world runs 'all'"]),
+])
+def test_a_policy_that_cannot_choose_is_named_with_what_is_wrong(name, fragments):
+    from yafs_safetail.sim.selection import DISPATCH
+
+    spec = f"{BAD_POLICIES}:{name}"
+    with pytest.raises(PolicyError) as caught:
+        UserMethod(spec).check_first_choice(5, np.random.default_rng(0), observation_of_five_servers(),
+                                            DISPATCH)
+    message = str(caught.value)
+    assert message.startswith(f"--method {spec}: ") and "\n" not in message
+    assert all(fragment in message for fragment in fragments), message
+
+
+def test_a_policy_that_chooses_well_passes_the_first_choice_check():
+    from yafs_safetail.sim.selection import DISPATCH
+
+    for spec in (f"{EXAMPLE}:NearestFree", f"{BAD_POLICIES}:Later"):
+        UserMethod(spec).check_first_choice(5, np.random.default_rng(0), observation_of_five_servers(),
+                                            DISPATCH)
+
+
+def test_a_constructor_that_raises_is_one_line_naming_its_line(tmp_path):
+    path = tmp_path / "fragile.py"
+    path.write_text(textwrap.dedent("""
+        from yafs_safetail.methods import Policy
+
+        class Fragile(Policy):
+            def __init__(self, n_servers, rng):
+                super().__init__(n_servers, rng)
+                self.table = {}[n_servers]
+    """))
+    with pytest.raises(PolicyError, match=r"Fragile\(n_servers, rng\) raised KeyError: 5 \(fragile.py line 7\)"):
+        UserMethod(f"{path}:Fragile").make(5, np.random.default_rng(0))

@@ -32,6 +32,7 @@ from yafs_safetail.runs.experiment import POLICY_FILE, REPOSITORY, YAFS_DIR, bas
 
 SCRIPT = REPOSITORY / "experiments" / "run_usecase.py"
 EXAMPLE = REPOSITORY / "examples" / "custom_policy" / "nearest_free.py"
+BAD_POLICIES = Path(__file__).resolve().parent / "bad_policies.py"
 TINY = ["--steps-scale", "0.02", "--redundancy", "1,2"]
 FIGURES = [f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in DEFAULT_FIGURE_FORMATS]
 
@@ -231,6 +232,11 @@ def test_help():
         (["--uc", "1", "--method", f"{EXAMPLE}:Nope"], ["--method", "Nope", "not a Policy subclass"]),
         (["--uc", "1", "--method", f"A={EXAMPLE}:NearestFree", "--method", f"A={EXAMPLE}:NearestFree"],
          ["--method", "two methods are named 'A'"]),
+        # At the full budget: found on the first request, long before SafeTail's training ends.
+        (["--uc", "1", "--method", f"{BAD_POLICIES}:Empty"],
+         [f"--method {BAD_POLICIES}:Empty", "Empty.choose() returned []", "no server"]),
+        (["--uc", "2", "--method", f"{BAD_POLICIES}:Raises"],
+         [f"--method {BAD_POLICIES}:Raises", "raised IndexError", "bad_policies.py line"]),
     ],
 )
 def test_bad_arguments_give_one_line_and_keep_earlier_results(tmp_path, args, fragments):
@@ -240,6 +246,19 @@ def test_bad_arguments_give_one_line_and_keep_earlier_results(tmp_path, args, fr
     assert_one_error_line(done, *fragments)
     assert snapshot(out) == kept
     assert [p.name for p in tmp_path.iterdir()] == ["earlier"]
+
+
+def test_a_policy_that_cannot_choose_stops_the_run_before_tensorflow_loads(tmp_path):
+    from test_first_answer import PROBE
+
+    done = subprocess.run([sys.executable, "-c", PROBE, str(SCRIPT), "--uc", "1", "--out", tmp_path / "run",
+                           "--method", f"{BAD_POLICIES}:Twice"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert done.returncode == 2, done.stderr
+    error, loaded = done.stderr.splitlines()
+    assert error.startswith(f"error: --method {BAD_POLICIES}:Twice: ") and "server 1 is chosen twice" in error
+    assert "tensorflow" not in loaded and "keras" not in loaded, loaded
+    assert list(tmp_path.iterdir()) == []  # no results, no checkpoint, not even results/
 
 
 def test_topology_that_is_not_json(tmp_path):

@@ -20,6 +20,7 @@ A new policy in a few lines::
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar, Protocol, runtime_checkable
@@ -82,15 +83,42 @@ def check_dispatch(policy: Policy, support: DispatchSupport) -> None:
         raise PolicyError(f"{policy.name}: dispatch 'hedge' needs a hedge_delay_s() method")
 
 
+def choice_problem(chosen: object, n_servers: int) -> tuple[tuple[int, ...], str]:
+    """What ``choose`` returned as Python ints in its order, and what is wrong with it.
+
+    Returns:
+        ``(servers, "")`` for a valid choice: non-empty, distinct integers within 0..n-1
+        (Python or NumPy integers, in a list, tuple or array); else ``((), problem)``, the
+        problem in words a policy's author can act on.
+    """
+    if isinstance(chosen, str | bytes) or not hasattr(chosen, "__iter__"):
+        return (), f"not a list of server indices such as [0, 2] (it is of type {type(chosen).__name__})"
+    items = list(chosen)
+    # A mask (one boolean per server) is a likely slip; Python's True would pass as index 1.
+    if any(isinstance(i, bool | np.bool_) for i in items):
+        return (), "a mask of booleans, not server indices (np.flatnonzero(mask) gives them)"
+    try:
+        # operator.index: integers of any kind, never a float or text that merely converts.
+        servers = tuple(operator.index(i) for i in items)
+    except TypeError:
+        return (), "not server indices: each must be an integer"
+    if not servers:
+        return (), f"no server: choose at least one of 0..{n_servers - 1}"
+    if min(servers) < 0 or max(servers) >= n_servers:
+        outside = next(i for i in servers if not 0 <= i < n_servers)
+        return (), f"server {outside} does not exist: the servers are 0..{n_servers - 1}"
+    if len(set(servers)) != len(servers):
+        twice = next(i for i in servers if servers.count(i) > 1)
+        return (), f"server {twice} is chosen twice: each server gets at most one copy"
+    return servers, ""
+
+
 def checked_choice(chosen: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
     """What ``choose`` returned as Python ints in its order (a hedge tries them in that order),
-    or PolicyError naming the method and the choice: non-empty, distinct, within 0..n-1."""
-    try:
-        servers = tuple(int(i) for i in chosen)
-    except (TypeError, ValueError):
-        raise PolicyError(f"{name}: choose() must return server indices, got {chosen!r}") from None
-    if not servers or len(set(servers)) != len(servers) or min(servers) < 0 or max(servers) >= n_servers:
-        raise PolicyError(f"{name}: invalid subset {chosen!r} for {n_servers} servers")
+    or PolicyError naming the method, the choice and what is wrong (:func:`choice_problem`)."""
+    servers, problem = choice_problem(chosen, n_servers)
+    if problem:
+        raise PolicyError(f"{name}: invalid subset {chosen!r} for {n_servers} servers: {problem}")
     return servers
 
 

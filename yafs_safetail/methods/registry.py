@@ -15,16 +15,24 @@ import importlib
 import importlib.util
 import re
 import sys
+import traceback
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from yafs_safetail.defaults import SAFETAIL as SAFETAIL
+from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
 from yafs_safetail.methods.hedging import Hedge, Tied
-from yafs_safetail.methods.learning import LearningPolicy
-from yafs_safetail.methods.policy import Policy, PolicyError
+from yafs_safetail.methods.learning import TRAIN_PHASE, LearningPolicy
+from yafs_safetail.methods.policy import (
+    DispatchSupport,
+    Policy,
+    PolicyError,
+    check_dispatch,
+    choice_problem,
+)
 
 ORACLE = "Oracle"
 #: The redundancy-level families of §V-B, in report order, and their policies.
@@ -136,6 +144,16 @@ def _load_class(spec: str) -> type[Policy]:
     return policy_class
 
 
+def _raised(error: Exception, policy_class: type) -> str:
+    """``Type: message (file.py line N)``: the exception and the last line of the policy's own
+    file it passed through (one line, where a traceback would be many)."""
+    source = getattr(sys.modules.get(policy_class.__module__), "__file__", None)
+    frames = traceback.extract_tb(error.__traceback__)
+    own = [frame for frame in frames if source is not None and frame.filename == source] or frames[-1:]
+    at = f" ({Path(own[-1].filename).name} line {own[-1].lineno})" if own else ""
+    return f"{type(error).__name__}: {error}{at}"
+
+
 class UserMethod:
     """A user's policy named on the command line: ``[NAME=]path/file.py:Class`` or
     ``[NAME=]module:Class``. Its class is loaded (and checked) when the spec is parsed."""
@@ -157,8 +175,48 @@ class UserMethod:
         except TypeError as error:
             raise PolicyError(f"--method {self.spec}: cannot construct {self.policy_class.__name__}"
                               f"(n_servers, rng): {error}") from None
+        except Exception as error:  # a bug in the user's constructor: one line, where it is
+            raise PolicyError(f"--method {self.spec}: {self.policy_class.__name__}(n_servers, rng) "
+                              f"raised {_raised(error, self.policy_class)}") from None
         policy.name = self.name
         return policy
+
+    def check_first_choice(self, n_servers: int, rng: np.random.Generator,
+                           observation: Observation, support: DispatchSupport) -> None:
+        """Build a throwaway instance and ask it for one request's servers, before the run.
+
+        A policy that cannot choose (it returns nothing, a server that does not exist, a server
+        twice, something that is not server indices, or it raises) would otherwise be found
+        only when its simulation starts, after SafeTail's training. The instance is not the one
+        the run uses, so the run's own policy draws from ``rng``'s twin exactly as without this
+        check; a learner is put in its training phase first, as the run does.
+
+        Args:
+            n_servers: the run's servers.
+            rng: a generator for the throwaway instance (not the run's instance's).
+            observation: ω^t of the run's first request; the policy may keep or change it, so
+                it must not share arrays with the run's world.
+            support: the dispatch modes the run's world runs (:func:`check_dispatch`).
+
+        Raises:
+            PolicyError: one line naming the policy's file and class and what is wrong.
+        """
+        policy = self.make(n_servers, rng)
+        where = f"--method {self.spec}"
+        try:
+            check_dispatch(policy, support)
+        except PolicyError as error:  # (its message starts with the method's name)
+            raise PolicyError(f"{where}: {str(error).removeprefix(f'{policy.name}: ')}") from None
+        if isinstance(policy, LearningPolicy):
+            policy.begin_phase(TRAIN_PHASE)
+        first = f"{where}: on the run's first request, {self.policy_class.__name__}.choose()"
+        try:
+            chosen = policy.choose(observation if policy.observes else None)
+        except Exception as error:
+            raise PolicyError(f"{first} raised {_raised(error, self.policy_class)}") from None
+        _, problem = choice_problem(chosen, n_servers)
+        if problem:
+            raise PolicyError(f"{first} returned {chosen!r}: {problem}")
 
     @property
     def learns(self) -> bool:

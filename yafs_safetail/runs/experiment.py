@@ -6,7 +6,9 @@ The flow reads top to bottom in :func:`run_experiment`:
    levels, topology and placement, a saved policy, users' policies) before TensorFlow is
    imported or the output is touched;
 2. draw the two phases' worlds (common random numbers: every method of a phase replays the
-   same requests, trace rows and per-server draws);
+   same requests, trace rows and per-server draws), the test world first: each user's policy,
+   built afresh, chooses the servers of its first request, so that a policy that cannot
+   choose stops the run in seconds instead of after SafeTail's training;
 3. start the test phase of the methods that do not learn in worker processes (``workers - 1``
    of them; ``runs.workers``);
 4. build the learning methods (``runs.learners``: SafeTail, or its saved policy, and users'
@@ -32,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 import yafs_safetail
@@ -59,6 +62,7 @@ from yafs_safetail.runs.provenance import run_metadata
 from yafs_safetail.runs.training import Checkpoints
 from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, method_rng, start_workers
 from yafs_safetail.runs.world_recipe import TEST, TRAIN, world_recipe
+from yafs_safetail.sim.selection import DISPATCH as SINGLE_USER_DISPATCH
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"
@@ -125,20 +129,43 @@ def _check(config: ExperimentConfig) -> _Inputs:
                 f"--redundancy: x={x!r} must be an integer in 1..{scenario.n_servers} "
                 f"(the servers in {config.topology})"
             )
-    for method in config.methods:  # a policy that cannot be built fails here, before any run
-        method.make(scenario.n_servers, method_rng(config.seed, method.name))
     if config.policy is not None:
         _check_saved_policy(config.policy, use_case, scenario)
     n_methods = 1 + len(baseline_names(config.redundancy_levels)) + len(config.methods)
     check_budget(config, recipe.full_preset, recipe.learner, recipe.test_steps, n_methods)
+    # Each phase's world comes from its own streams of the seed, so drawing the test world
+    # first changes no draw; it lets a user's policy be tried before the (longer) training
+    # world is drawn.
+    test_world = recipe.make_world(TEST, config.seed)
+    _check_user_policies(config, test_world)
     return _Inputs(
         use_case=use_case,
         learner_config=recipe.learner,
         scenario=scenario,
         train_world=recipe.make_world(TRAIN, config.seed) if config.policy is None else None,
-        test_world=recipe.make_world(TEST, config.seed),
+        test_world=test_world,
         world_overrides=recipe.overrides,
     )
+
+
+def _check_user_policies(config: ExperimentConfig, world: EdgeWorld) -> None:
+    """Ask each ``--method`` policy, built afresh, for the servers of the test phase's first
+    request, so that one that cannot choose fails now (PolicyError), before any training.
+
+    Nothing the run uses is touched: the instance is a throwaway one with its own twin of the
+    method's generator, and the observation is read from the pre-drawn world (no draw) into
+    arrays of its own, so a policy that writes into it cannot change the world every method
+    replays.
+    """
+    if not config.methods:
+        return
+    first = world.observation(0, np.array(world.background_users[0]))
+    for method in config.methods:
+        copies: dict[str, Any] = {f.name: np.array(value) for f in dataclasses.fields(first)
+                                  if isinstance(value := getattr(first, f.name), np.ndarray)}
+        observation = dataclasses.replace(first, **copies)
+        method.check_first_choice(world.n_servers, method_rng(config.seed, method.name),
+                                  observation, SINGLE_USER_DISPATCH)
 
 
 def _check_saved_policy(path: Path, use_case: UseCase, scenario: EdgeScenario) -> None:
