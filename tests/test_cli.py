@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from yafs_safetail.cli import EXIT_BAD_INPUT, ArgumentParser, run_cli
+from yafs_safetail.cli import EXIT_BAD_INPUT, SCRIPT_COMMANDS, ArgumentParser, run_cli
 from yafs_safetail.edge.scenario import REPOSITORY
 
 
@@ -126,6 +126,26 @@ def test_help_texts_refer_only_to_what_a_user_can_read(script: str) -> None:
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert not UNKNOWN_REFERENCE.findall(done.stdout), done.stdout
+
+
+#: Paths an installed (wheel) user does not have: the checkout's scripts, docs and examples,
+#: and the package's source files (a module is named as ``yafs_safetail.x.y``, for pydoc).
+CHECKOUT_ONLY = re.compile(r"experiments/|docs/|examples/|yafs_safetail/")
+
+
+@pytest.mark.parametrize("command", ["", *(name for name in SCRIPT_COMMANDS if name != "reproduce")])
+def test_help_names_only_what_an_installed_user_has(capsys: pytest.CaptureFixture[str], command: str) -> None:
+    # (reproduce: its description is being changed on another branch; it joins once merged.)
+    from yafs_safetail.cli import main
+
+    if command:
+        with pytest.raises(SystemExit) as done:  # argparse's own --help exit
+            main([command, "--help"])
+        assert done.value.code == 0
+    else:
+        assert main(["--help"]) == 0
+    shown = capsys.readouterr().out
+    assert shown.startswith("usage: yafs-safetail") and not CHECKOUT_ONLY.findall(shown), shown
 
 
 def test_sigterm_becomes_a_clean_exit(capsys: pytest.CaptureFixture[str]) -> None:

@@ -46,7 +46,7 @@ def test_the_single_user_world_names_the_world_that_runs_a_mode():
     with pytest.raises(PolicyError) as refused:
         check_dispatch(make(Tied), selection.DISPATCH)
     message = str(refused.value)
-    assert message == ("Tied: dispatch 'tied' needs the contention world (experiments/load_sweep.py); "
+    assert message == ("Tied: dispatch 'tied' needs the contention world (yafs-safetail sweep); "
                        "the single-user world runs 'all'")
 
 

@@ -314,7 +314,8 @@ def _command_main(module_name: str) -> Callable[[Sequence[str] | None], int | No
 def _listing() -> str:
     """The usage line and one line per subcommand."""
     lines = [USAGE, f"  {'--version':<14} print the package's version ({__version__})"]
-    lines += [f"  {name:<14} {what} (experiments/{module}.py)" for name, (module, what) in SCRIPT_COMMANDS.items()]
+    # No script paths: an installed (wheel) user has no experiments/ folder.
+    lines += [f"  {name:<14} {what}" for name, (module, what) in SCRIPT_COMMANDS.items()]
     lines.append(f"  {'figures':<14} redraw a results folder's figures (python -m yafs_safetail.figures)")
     return "\n".join(lines) + "\n"
 

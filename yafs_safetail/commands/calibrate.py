@@ -1,15 +1,15 @@
 """Fit the world parameters the paper never published, without the learner.
 
-    python experiments/calibrate.py                       # the shipped fit (about 5 min on 2 cores)
-    python experiments/calibrate.py --apply               # ... and install the result
-    python experiments/calibrate.py --seeds 1000 --out /tmp/cal   # a quick look
+    yafs-safetail calibrate                               # the shipped fit (about 5 min on 2 cores)
+    yafs-safetail calibrate --apply                       # ... and install the result
+    yafs-safetail calibrate --seeds 1000 --out /tmp/cal   # a quick look
 
 Every point of a fixed grid (load start x load peak x bandwidth share exponent x fallback
 multiple) is scored on use case 1's test worlds of the world-calibration seeds: Rand-1's,
 MinLoad-1's and MinProp-1's latency over Oracle's at the median, p90, p95 and p99, against what
-the paper's numbers imply (docs/calibration.md, rule 1). SafeTail is not in the objective.
+the paper's numbers imply (calibration, rule 1, in the documentation). SafeTail is not in the objective.
 Writes OUT/evaluations.csv (every candidate) and OUT/calibration.json (the best, with its
-provenance); with --apply the result also replaces yafs_safetail/edge/calibration.json, which
+provenance); with --apply the result also replaces the package's edge/calibration.json, which
 the `paper` and `tuned` presets' world reads.
 """
 
@@ -45,14 +45,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--grid", type=Path, default=None,
                         help="a JSON file mapping each parameter (load_start, load_peak_users, "
                              "bandwidth_share_exponent, fallback_compute_multiple) to its values "
-                             "(default: the shipped grid, docs/calibration.md)")
+                             "(default: the shipped grid; calibration in the documentation)")
     parser.add_argument("--workers", type=positive_int, default=None,
                         help=f"parallel processes (default: {default_workers_help(CALIBRATION_WORKER_BYTES)}; "
                              "the result does not depend on it)")
     parser.add_argument("--out", type=Path, default=Path("results/calibration"),
                         help="output folder (default results/calibration)")
     parser.add_argument("--apply", action="store_true",
-                        help="install the result as yafs_safetail/edge/calibration.json")
+                        help="install the result as the package's edge/calibration.json")
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)

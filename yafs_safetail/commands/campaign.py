@@ -1,14 +1,15 @@
 """Run a grid of experiments as one campaign: each run computed once, resumable, in parallel.
 
-    python experiments/campaign.py --grid grid.toml --out results/campaign1 --workers 2
-    python experiments/campaign.py --grid grid.toml --out results/campaign1 --engine ray
-    python experiments/campaign.py --grid grid.toml --out results/campaign1 --ray-address head:6379
+    yafs-safetail campaign --grid grid.toml --out results/campaign1 --workers 2
+    yafs-safetail campaign --grid grid.toml --out results/campaign1 --engine ray
+    yafs-safetail campaign --grid grid.toml --out results/campaign1 --ray-address head:6379
 
 The grid (TOML, YAML or JSON) sets ExperimentConfig fields in ``[base]`` and lists the values
-to combine in ``[axes]`` (see yafs_safetail/runs/grid.py and docs/campaigns.md). A relative path
-in the grid is read from the grid file's folder, else is the packaged default of that name
-(topologies/paper_5servers.json...). The whole grid is checked before any run starts: each bad
-entry is one error line, the exit status 2, and nothing is written. Each run goes
+to combine in ``[axes]`` (``python -m pydoc yafs_safetail.runs.grid``; campaigns in the
+documentation). A relative path in the grid is read from the grid file's folder, else is the
+packaged default of that name (topologies/paper_5servers.json...). The whole grid is checked
+before any run starts: each bad entry is one error line, the exit status 2, and nothing is
+written. Each run goes
 into ``OUT/<axis values>-<run id>/``; rerunning the same command resumes where it stopped and
 recomputes nothing finished. Progress goes to stderr (none with --quiet but failed runs) and
 ``OUT/campaign.log``, each run's state to ``OUT/campaign.json``, each run's own log to its

@@ -1,14 +1,14 @@
-"""Choose the `paper` preset's learning rate per use case by the rule of docs/calibration.md.
+"""Choose the `paper` preset's learning rate per use case by the calibration rule.
 
-    python experiments/choose_learning_rate.py                 # the rule as written (~15 min)
-    python experiments/choose_learning_rate.py --uc 1 --steps-scale 0.05 --seeds 1000 --out /tmp/lr
+    yafs-safetail learning-rate                 # the rule as written (~15 min)
+    yafs-safetail learning-rate --uc 1 --steps-scale 0.05 --seeds 1000 --out /tmp/lr
 
 For each use case and each rate of the grid (1e-5 ... 3e-3), trains `paper` at that rate on the
 learner-calibration seeds (seed_sets.json) in the calibrated world and scores the greedy
 policy's mean Eq. 5 reward over its test requests; the highest wins, ties to the smaller rate.
 Writes OUT/learning_rates.csv (every run) and OUT/learning_rates.json (the choice and its
 provenance). The scorecard's numbers never enter. The shipped rates are
-yafs_safetail/methods/safetail/presets.py's PAPER_LEARNING_RATES.
+yafs_safetail.methods.safetail.presets.PAPER_LEARNING_RATES (calibration in the documentation).
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """Compare two results folders: each method's test-phase p50/p90/p95/p99 and servers per request
 in run A and run B, the ratio B / A and its 95% bootstrap interval.
 
-    python experiments/compare_runs.py RUN_A RUN_B [--out DIR] [--seed 0]
-    yafs-safetail compare RUN_A RUN_B [--out DIR]
+    yafs-safetail compare RUN_A RUN_B [--out DIR] [--seed 0]
 
 Prints the table, and one warning line on stderr when the two runs' worlds differ (topology,
 placement, use case, preset, world settings, failures, energy models: read from both run.json

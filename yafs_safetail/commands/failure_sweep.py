@@ -1,6 +1,6 @@
 """Servers that fail: every method's success rate, p99 and energy per request as failures rise.
 
-    python experiments/failure_sweep.py --uc 1 --seed 0 --steps-scale 1 --out results/failures_uc1
+    yafs-safetail failure-sweep --uc 1 --seed 0 --steps-scale 1 --out results/failures_uc1
 
 At one offered load (--load, default 0.1), each server goes down and comes back (exponential
 times to failure and to repair, mean repair --mttr-s) with a stationary probability of being
@@ -18,7 +18,7 @@ level and method, every row, and the goals, each computed: Oracle's and the x >=
 success rate above every x = 1 baseline's at every level with failures; each SafeTail's energy
 per request below Oracle's at every level), OUT/failure_sweep.png (the three against the
 level) and OUT/run.json. Each level is one campaign run (OUT/level-<p>/): rerunning resumes,
---workers spreads the levels; see docs/contention.md.
+--workers spreads the levels; see the contention world in the documentation.
 """
 
 from __future__ import annotations

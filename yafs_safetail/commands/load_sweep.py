@@ -1,13 +1,13 @@
 """Many users at once: every method's latency and copies against the offered load.
 
-    python experiments/load_sweep.py --uc 1 --users 50 --loads 0.1,0.3,0.5,0.7,0.9 --seed 0 \\
+    yafs-safetail sweep --uc 1 --users 50 --loads 0.1,0.3,0.5,0.7,0.9 --seed 0 \\
         --steps-scale 1 --out results/sweep_uc1
 
 Two SafeTails run beside the fixed methods by default, each trained at each load (its preset's
 training budget × --steps-scale) and tested greedily: SafeTail, the paper's learner (§III's
 target vector, Eq. 5, preset paper, copies sent all at once), and SafeTail-CA, the
 contention-aware one beyond the paper (a value learner that prices each copy by the jobs it
-joins, preset tuned, tied copies; docs/deviations.md D13). --learner target-vector or
+joins, preset tuned, tied copies; deviation D13 in the documentation). --learner target-vector or
 --learner value runs one of them alone; --no-safetail neither.
 
 Writes OUT/sweep.csv (one row per load and method: load, method, n_requests, p50_s, p99_s,
@@ -17,7 +17,7 @@ at least 1.5x its p99 at the lowest, and worse than single dispatch beyond some 
 SafeTail sending fewer copies as the load rises, its p99 at most 1.05x the best fixed method's
 at every load, and below Oracle's from load 0.7), OUT/sweep.png (p99 on a log scale and copies
 per request against load, both SafeTails highlighted), OUT/sweep_latency.png (p50 and p99) and
-OUT/run.json (the settings and this command); see docs/contention.md.
+OUT/run.json (the settings and this command); see the contention world in the documentation.
 
 With --seeds 0,1,2 (instead of --seed) every seed's sweep goes into OUT/seed-<S>/ as above, and
 OUT/seeds.csv (every seed's sweep.csv rows, with a seed column) and OUT/SEEDS.md (each SafeTail's
@@ -94,7 +94,7 @@ def add_world_options(parser: argparse.ArgumentParser) -> None:
     # A word or a file: ~ expanded as in every path option (the words have none to expand).
     parser.add_argument("--user-conditions", default="topology", type=os.path.expanduser,
                         help="each user's distance condition per server: topology (default), generated "
-                             "(the topology's ±1 per user and server) or a JSON file (docs/contention.md)")
+                             "(the topology's ±1 per user and server) or a JSON file (the contention world in the documentation)")
 
 
 def add_output_options(parser: argparse.ArgumentParser, config_class: type[ContentionSweep]) -> None:

@@ -1,12 +1,10 @@
 """Train SafeTail on one use case, test it against the paper's baselines, write results and figures.
 
-    python experiments/run_usecase.py --uc 1                       # paper preset, full budget
-    python experiments/run_usecase.py --uc 2 --preset tuned --seed 3 --out results/uc2-tuned
-    python experiments/run_usecase.py --uc 1 --steps-scale 0.1     # a quick look
-    python experiments/run_usecase.py --uc 1 --policy results/uc1/policy.keras --out results/uc1-eval
-    python experiments/run_usecase.py --uc 1 --method examples/custom_policy/nearest_free.py:NearestFree
-    yafs-safetail run --uc 1                                       # the same, installed
-
+    yafs-safetail run --uc 1                                     # paper preset, full budget
+    yafs-safetail run --uc 2 --preset tuned --seed 3 --out results/uc2-tuned
+    yafs-safetail run --uc 1 --steps-scale 0.1                   # a quick look
+    yafs-safetail run --uc 1 --policy results/uc1/policy.keras --out results/uc1-eval
+    yafs-safetail run --uc 1 --method my_policy.py:MyPolicy      # your own policy beside them
 
 Progress goes to stderr: bars on a terminal, otherwise one line per phase start and end and
 every 10% of a long phase; --quiet keeps warnings and errors only, --verbose adds debug lines.
@@ -16,6 +14,12 @@ requests.csv (one row per request and method), summary.csv and
 summary.md (percentiles, access rates, the paper's ratios), run.json, the trained policy,
 Figs. (a)-(g) under figures/ as PNG (--figure-format png,pdf adds PDF copies), and with --yafs-csv each method's YAFS result
 CSVs under yafs/ (about 70 MB for a full UC1 run, so only on request).
+
+A --method policy subclasses yafs_safetail.methods.Policy and implements choose(observation),
+returning the indices (0..n-1, distinct, at least one) of the servers that get a copy; what the
+observation holds, with units: python -m pydoc yafs_safetail.edge.observation. Each policy is
+asked for the first test request's servers before anything trains: one that cannot choose
+stops the run at once, naming its file, its class and what is wrong.
 """
 
 from __future__ import annotations

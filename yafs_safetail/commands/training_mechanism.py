@@ -1,15 +1,15 @@
 """Why the paper's learner collapses under contention, measured over its training.
 
-    python experiments/training_mechanism.py --uc 1 --users 50 --loads 0.1,0.5,0.9 --seed 17 \\
+    yafs-safetail mechanism --uc 1 --users 50 --loads 0.1,0.5,0.9 --seed 17 \\
         --steps-scale 0.3 --out results/mechanism_uc1
 
-Trains each SafeTail of the load sweep at each load exactly as experiments/load_sweep.py does
+Trains each SafeTail of the load sweep at each load exactly as yafs-safetail sweep does
 (same world, seeds and requests, so the trained policies are the sweep's) and records, per
 training request, the copies sent and the users active per server when it chose (the queue
 its copies join). Writes OUT/mechanism.csv (means per window of training: method, load,
 window, first_request, requests, mean_copies, mean_active_per_server, mean_latency_s,
 p99_latency_s), OUT/mechanism.png (copies and queue length against training progress, one
-line per load, one column per SafeTail) and OUT/run.json. See docs/contention.md.
+line per load, one column per SafeTail) and OUT/run.json. See the contention world in the documentation.
 """
 
 from __future__ import annotations

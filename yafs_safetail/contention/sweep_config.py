@@ -170,15 +170,15 @@ class ContentionSweep:
                                  "(load or failure level)",
                                  check=POSITIVE_NUMBER)
     reward: str = setting("paper", "the paper learner's reward: Eq. 5 (default) or Eq. 5 without case 3's free "
-                          "miss with all servers (docs/contention.md); SafeTail-CA has its own",
+                          "miss with all servers (the contention world in the documentation); SafeTail-CA has its own",
                           check=one_of(("paper", "no-free-miss")))
     target: str = setting("eq4", "the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
                           "observed-load (its compute term at the servers' load seen at dispatch; "
-                          "docs/deviations.md D12)", check=one_of(TARGETS))
+                          "deviation D12 in the documentation)", check=one_of(TARGETS))
     learners: tuple[str, ...] = setting(
         tuple(SAFETAIL_LEARNERS), "the SafeTails to train, comma-separated (default both): target-vector (the "
         "paper's §III learner, row SafeTail) and value (the same network predicting each action's latency, its "
-        "copies priced at dispatch: row SafeTail-CA, docs/deviations.md D13)", check=LEARNERS, flag="--learner")
+        "copies priced at dispatch: row SafeTail-CA, deviation D13 in the documentation)", check=LEARNERS, flag="--learner")
     dispatch: str | None = setting(
         None, "how every SafeTail's subset is sent: all at once (the paper; SafeTail's default) or tied "
         "(cancelled once one copy starts running, as Tied; with the value learner at least two copies; "
@@ -189,7 +189,7 @@ class ContentionSweep:
         check=POSITIVE_INTEGER, flag="--test-requests", optional=True)
     value_networks: int | None = setting(
         None, "how many networks' predictions SafeTail-CA (the value learner) averages "
-        f"(default {DEFAULT_VALUE_NETWORKS}; docs/deviations.md D13)", check=POSITIVE_INTEGER, optional=True)
+        f"(default {DEFAULT_VALUE_NETWORKS}; deviation D13 in the documentation)", check=POSITIVE_INTEGER, optional=True)
 
     #: What the sweep varies (each subclass's).
     axis: ClassVar[SweepAxis]

@@ -117,7 +117,7 @@ class Task:
                             check=one_of(USE_CASES, int), flag="--uc")
     preset: str = setting(
         "paper", "learner preset (default: paper = Table I with the readings under which it learns, "
-        "in the calibrated world; paper-literal = Table I verbatim; tuned = ours; docs/deviations.md)",
+        "in the calibrated world; paper-literal = Table I verbatim; tuned = ours; deviations D1, D6, D8 in the documentation)",
         check=one_of(PRESET_NAMES))
     seed: int = setting(0, "the run's seed (default 0)", check=NON_NEGATIVE_INTEGER)
     steps_scale: float = setting(1.0, "fraction of the preset's training and testing steps (default 1)",
@@ -157,7 +157,7 @@ class WorldSetup:
     target_compute: str | None = setting(
         None, "C(s_j) of Eq. 4: 'request', the median compute time at ν of the request's own input, "
         "or 'trace_median', the compute trace's median at ν for every request (default: the preset "
-        "world's; docs/deviations.md D11)", check=one_of(TARGET_COMPUTES), optional=True)
+        "world's; deviation D11 in the documentation)", check=one_of(TARGET_COMPUTES), optional=True)
 
 
     # Failures and energy (beyond the paper; docs/failures_energy.md). None everywhere: no
@@ -201,21 +201,21 @@ class LearnerOverrides:
         "summary.md say so", check=POSITIVE_NUMBER, optional=True)
     energy_price_per_j: float | None = setting(
         None, "beyond the paper: subtract this price times a request's energy (J) from SafeTail's "
-        "Eq. 5 reward (default 0: the paper's reward; docs/deviations.md D15)",
+        "Eq. 5 reward (default 0: the paper's reward; deviation D15 in the documentation)",
         check=NON_NEGATIVE_NUMBER, optional=True)
     failure_penalty: float | None = setting(
         None, "beyond the paper: subtract this from SafeTail's Eq. 5 reward for every request that "
-        "did not end with a reply (default 0; docs/deviations.md D15)",
+        "did not end with a reply (default 0; deviation D15 in the documentation)",
         check=NON_NEGATIVE_NUMBER, optional=True)
     objective: str | None = setting(
         None, "beyond the paper: SafeTail's learner, target-vector (the paper's §III, the default) or "
         "value (the network regresses each action's latency score, less the D15 prices when set, "
         "and copies to busy servers are priced at dispatch: the contention world's SafeTail-CA "
-        "learner; docs/deviations.md D13, D15)", check=one_of(OBJECTIVES), flag="--learner",
+        "learner; deviations D13, D15 in the documentation)", check=one_of(OBJECTIVES), flag="--learner",
         optional=True)
     n_networks: int | None = setting(
         None, "with --learner value: how many value networks, each from its own initial weights, "
-        "SafeTail averages (default 1; docs/deviations.md D13)", check=POSITIVE_INTEGER,
+        "SafeTail averages (default 1; deviation D13 in the documentation)", check=POSITIVE_INTEGER,
         flag="--value-networks", optional=True)
 
 

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 #: The single-user world sends every chosen copy at once.
 DISPATCH = DispatchSupport("the single-user world", ("all",),
-                           elsewhere="the contention world (experiments/load_sweep.py)")
+                           elsewhere="the contention world (yafs-safetail sweep)")
 
 
 def checked_subset(subset: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
