@@ -133,9 +133,8 @@ def test_help_texts_refer_only_to_what_a_user_can_read(script: str) -> None:
 CHECKOUT_ONLY = re.compile(r"experiments/|docs/|examples/|yafs_safetail/")
 
 
-@pytest.mark.parametrize("command", ["", *(name for name in SCRIPT_COMMANDS if name != "reproduce")])
+@pytest.mark.parametrize("command", ["", *SCRIPT_COMMANDS])
 def test_help_names_only_what_an_installed_user_has(capsys: pytest.CaptureFixture[str], command: str) -> None:
-    # (reproduce: its description is being changed on another branch; it joins once merged.)
     from yafs_safetail.cli import main
 
     if command:

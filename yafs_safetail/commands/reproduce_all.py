@@ -1,21 +1,21 @@
 """Run every use case over several seeds and write one report against the paper's numbers.
 
-    python experiments/reproduce_all.py                          # UC 1-3, seeds 0-4, paper preset
-    python experiments/reproduce_all.py --preset paper,paper-literal,tuned --seeds 0,1,2,3,4,5
-    python experiments/reproduce_all.py --steps-scale 0.1 --out results/quick
-    python experiments/reproduce_all.py --workers 1                # one run at a time (less memory)
-    python experiments/reproduce_all.py --engine ray               # on Ray (see docs/campaigns.md)
-    python experiments/reproduce_all.py --learning-rate 1e-3 --out results/paper-lr1e-3
-    python experiments/reproduce_all.py --method examples/custom_policy/nearest_free.py:NearestFree
+    yafs-safetail reproduce                                  # UC 1-3, seeds 0-4, paper preset
+    yafs-safetail reproduce --preset paper,paper-literal,tuned --seeds 0,1,2,3,4,5
+    yafs-safetail reproduce --steps-scale 0.1 --out results/quick
+    yafs-safetail reproduce --workers 1                      # one run at a time (less memory)
+    yafs-safetail reproduce --engine ray                     # on Ray (campaigns in the documentation)
+    yafs-safetail reproduce --learning-rate 1e-3 --out results/paper-lr1e-3
+    yafs-safetail reproduce --method my_policy.py:MyPolicy   # your policy over seeds, with intervals
 
-For every (use case, preset, seed) it runs exactly what ``run_usecase.py`` runs, into
+For every (use case, preset, seed) it runs exactly what the run command runs, into
 ``OUT/uc<N>-<preset>/seed<S>/``. Then ``OUT/REPORT.md`` opens with the fidelity scorecard of
 each preset (every ratio and claim the paper publishes against ours over the seeds, calibration
 subset and held-out numbers apart; also in ``OUT/fidelity.csv`` and the figure
 ``OUT/fidelity-<preset>.png``), then what any policy could reach in that world (whether the
 paper's statements about each percentile can hold together at all, from Oracle's and the
 baselines' latencies and the targets alone; ``OUT/feasibility.csv``,
-yafs_safetail/results/feasibility.py), and gives, per use case and preset: the latency table (mean over
+``yafs_safetail.results.feasibility``), and gives, per use case and preset: the latency table (mean over
 seeds and a 95% bootstrap interval), our ratios beside the paper's stated ones with a plain
 note where they differ, what the learner did (training rounds, final ε, servers used, target
 met, fallbacks) as the first place to look for why, figures across seeds with 95% bands
@@ -25,12 +25,12 @@ figures of the first seed. Every table of the report is also written as LaTeX
 (``OUT/tables/*.tex``, listed at the end of REPORT.md). Seeds must be distinct; the scorecard
 asks for at least five (with fewer it says so and goes on).
 
---method adds your own Policy (as run_usecase.py's --method) to every run, beside SafeTail and
+--method adds your own Policy (as the run command's --method) to every run, beside SafeTail and
 the baselines: each use case and preset's section then also gives its latency (median, p90,
 p95, p99) and servers per request beside SafeTail's and Oracle's, and its speed-ups over both,
 with 95% intervals over the seeds (also in ``OUT/methods.csv``).
 
-The runs form one campaign (yafs_safetail/runs/campaign.py): rerunning the same command on the
+The runs form one campaign (``yafs_safetail.runs.campaign``): rerunning the same command on the
 same --out resumes an interrupted reproduction and recomputes no finished run (a run folder
 records its run id, a hash of its configuration and the code version); a run that fails is
 reported and the others go on (exit status 1, no report). Progress goes to stderr and
@@ -106,7 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_options(parser, only=("steps_scale", "target_compute"),
                 steps_scale={"help": "fraction of each preset's steps (default 1)"},
                 target_compute={"help": "C(s_j) of Eq. 4 for every run (default: each preset world's; "
-                                        "docs/deviations.md D11)"})
+                                        "deviation D11 in the documentation)"})
     add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
                 learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
                                        "report then says these are not the presets' results)"})

@@ -36,7 +36,7 @@ CGROUP_DIR = Path("/sys/fs/cgroup")
 def default_workers_help(per_worker_bytes: float = RUN_WORKER_BYTES) -> str:
     """How ``--workers`` defaults, for the help texts (:func:`automatic_workers`)."""
     return (f"one per usable CPU while each has {per_worker_bytes / 1e9:g} GB of the available "
-            "memory, at least 1 (docs/campaigns.md)")
+            "memory, at least 1 (campaigns in the documentation)")
 
 #: Where runs execute: spawned local worker processes, or Ray tasks (runs.engines).
 ENGINES = ("local", "ray")
