@@ -3,6 +3,7 @@ on a tiny grid."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -60,11 +61,13 @@ def test_objective_is_zero_at_the_implied_cells_and_symmetric_in_log():
     {"load_start": "shared", "load_peak_users": 3.0, "bandwidth_share_exponent": 2.0,
      "fallback_compute_multiple": 4.0},
 ])
-def test_latencies_read_from_the_world_equal_the_simulation(candidate):
+@pytest.mark.parametrize("reading", ["paper-text", "original-code"])
+def test_latencies_read_from_the_world_equal_the_simulation(candidate, reading):
     use_case, inputs, scenario = calibrate._scenario(str(calibrate.DEFAULT_TOPOLOGY),
                                                      str(calibrate.DEFAULT_PLACEMENT))
+    settings = dataclasses.replace(calibrate.settings_for(candidate), baseline_reading=reading)
     world = calibrate.build_world(scenario, use_case, inputs, 400, seed=5, phase="test",
-                                  settings=calibrate.settings_for(candidate))
+                                  settings=settings)
     read = calibrate.method_latencies_s(world, calibrate.seed_choices(5, world.n_servers, 400))
     names = ("Oracle", *calibrate.X1_BASELINES)
     job = MethodsJob(names=names, user_methods=(), seed=5, world=world, step_interval_s=60.0,

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world
 from yafs_safetail.methods import (
@@ -115,3 +116,42 @@ def test_a_policy_returning_a_bad_subset_is_caught(world, bad):
 
     with pytest.raises(PolicyError, match="Broken: (invalid subset|choose\\(\\) must return)"):
         simulate(world, Broken(world.n_servers, np.random.default_rng(0)))
+
+
+def _five_servers(load, propagation_s):
+    five = np.ones(5)
+    return Observation(
+        server_uplink_bps=2e7 * five, server_downlink_bps=2e7 * five, server_memory_util=0.1 * five,
+        server_cpu_util=0.1 * five, server_active_users=np.asarray(load),
+        server_median_propagation_s=np.asarray(propagation_s, dtype=float), input_bytes=1e5,
+        est_output_bytes=1e4, gamma=np.zeros(0), user_location=np.zeros(2), user_uplink_bps=2e7,
+        user_downlink_bps=2e7, server_max_load=np.full(5, 4), step=0)
+
+
+@pytest.mark.parametrize("family", ["MinLoad", "MinProp"])
+def test_the_original_codes_reading_sorts_three_drawn_servers_stably(family):
+    # Server 0 is the best of all five by both keys, so the paper's text always takes it; the
+    # original code's reading takes the best of the three it draws, the first drawn on a tie.
+    observation = _five_servers([0, 2, 2, 1, 3], [0.01, 0.05, 0.05, 0.02, 0.09])
+    key = observation.server_active_users if family == "MinLoad" else observation.server_median_propagation_s
+    for x in (1, 2, 3):
+        text = make_baseline(f"{family}-{x}", 5, np.random.default_rng(3))
+        assert text.choose(observation)[0] == 0
+        code = make_baseline(f"{family}-{x}", 5, np.random.default_rng(3), "original-code")
+        twin = np.random.default_rng(3)
+        firsts = set()
+        for _ in range(200):
+            drawn = twin.choice(5, size=3, replace=False)
+            expected = drawn[np.argsort(key[drawn], kind="stable")][:x]
+            chosen = code.choose(observation)
+            assert list(chosen) == list(expected)
+            firsts.add(chosen[0])
+        assert len(firsts) > 1  # not always server 0
+    # x above three draws x servers; the paper's text is unchanged.
+    assert len(make_baseline(f"{family}-4", 5, np.random.default_rng(0), "original-code").choose(observation)) == 4
+
+
+def test_an_unknown_reading_is_refused():
+    with pytest.raises(PolicyError, match="baseline reading 'newest'"):
+        make_baseline("MinLoad-1", 5, np.random.default_rng(0), "newest")
+    assert isinstance(make_baseline("Rand-2", 5, np.random.default_rng(0), "original-code"), RandX)

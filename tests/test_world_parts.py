@@ -21,6 +21,7 @@ class _Overrides:
     target_latency_s: float | None = None
     load_peak_users: float | None = None
     target_compute: str | None = None
+    baseline_reading: str | None = None
 
 
 def test_draw_is_build_world_with_the_parts_settings(uc1):

@@ -65,10 +65,17 @@ SAFETAIL_DISPATCH = ("all", "tied")
 #: What C(s_j) of Eq. 4 is: the compute trace's median at ν processes for every request, or that
 #: median scaled to the request's own input (docs/deviations.md D11).
 TARGET_COMPUTES = ("trace_median", "request")
+#: How MinLoad-x and MinProp-x choose (docs/calibration.md rule 5): ``paper-text``, §V-B as
+#: written (the x best of all n servers); ``original-code``, as the code that produced the
+#: paper's numbers chose (three servers drawn at random per request, sorted stably, the first x).
+BASELINE_READINGS = ("paper-text", "original-code")
+#: How many servers the original code's MinLoad-x and MinProp-x drew before sorting.
+ORIGINAL_CODE_CANDIDATES = 3
 #: The world's settings (``edge.calibration.WorldSettings`` fields) a run may override: the
 #: experiment's options and the contention world's fields of these names, applied to the world
 #: by ``edge.world_parts.apply_world_overrides``.
-WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute")
+WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute",
+                                     "baseline_reading")
 #: Simulated time between two requests: one load-trace row (one minute) per step.
 DEFAULT_STEP_INTERVAL_S = 60.0
 

@@ -120,7 +120,8 @@ def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
     axes.set_title(f"{title}\nuse case {run.use_case}, preset {run.preset}{run.learning_rate_note}"
                    f"{run.settings_note}")
     # The long use-case name goes in the footer, where it cannot run off the figure's edge.
-    figure.text(0.99, 0.005, f"{run.use_case_name}; seed {run.seed}, β = {run.beta}, "
+    reading = f"; baselines: {run.baseline_reading}" if run.baseline_reading else ""
+    figure.text(0.99, 0.005, f"{run.use_case_name}; seed {run.seed}, β = {run.beta}{reading}, "
                 f"yafs-safetail {run.package_version}",
                 ha="right", va="bottom", fontsize=6, color="#777777", wrap=True)
     return figure, axes

@@ -49,7 +49,8 @@ from yafs_safetail.runs.config import ExperimentConfig, add_options, config_from
 #: The run's options in the order --help lists them (each declared once, in runs.config).
 OPTIONS = ("use_case", "preset", "seed", "out_dir", "force", "overwrite", "resume", "checkpoint_every_s",
            "steps_scale", "redundancy_levels", "topology", "placement", "methods", "policy",
-           "step_interval_s", "target_latency_s", "load_peak_users", "target_compute", "learning_rate",
+           "step_interval_s", "target_latency_s", "load_peak_users", "target_compute", "baseline_reading",
+           "learning_rate",
            "workers")
 
 

@@ -84,7 +84,8 @@ class ContentionConfig:
         failures: when servers are down and how long a user waits for a reply (beyond the
             paper; the default: no server ever fails and no time-out, the paper's world).
         energy: the servers' and the devices' power models that price every copy.
-        target_latency_s, load_peak_users, target_compute: the run's overrides of the world's
+        target_latency_s, load_peak_users, target_compute, baseline_reading: the run's
+            overrides of the world's
             settings, as the experiment's options of these names (``defaults.WORLD_OVERRIDES``,
             applied by the same ``edge.world_parts.apply_world_overrides``); None keeps the
             world's own.
@@ -113,6 +114,7 @@ class ContentionConfig:
     target_latency_s: float | None = None
     load_peak_users: float | None = None
     target_compute: str | None = None
+    baseline_reading: str | None = None
 
     def world_overrides(self) -> dict[str, Any]:
         """The overrides of the world's settings it sets (a sweep point's settings record only

@@ -198,7 +198,8 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         user_conditions: ``"topology"``, ``"generated"`` or a JSON file.
         failures: when servers are down and how long a user waits.
         energy: the power models pricing every copy.
-        target_latency_s, load_peak_users, target_compute: overrides of the world's settings
+        target_latency_s, load_peak_users, target_compute, baseline_reading: overrides of the
+            world's settings
             (None: the world's own), as ``SafeTailEnv``'s and the experiment's.
         dispatch: ``"all"`` (every copy at once) or ``"tied"``.
         target: the τ of the records and rewards: ``"eq4"`` or ``"observed-load"``.
@@ -238,6 +239,7 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         target_latency_s: float | None = _DEFAULTS.target_latency_s,
         load_peak_users: float | None = _DEFAULTS.load_peak_users,
         target_compute: str | None = _DEFAULTS.target_compute,
+        baseline_reading: str | None = _DEFAULTS.baseline_reading,
         dispatch: str = "all",
         target: str = "eq4",
         reward: str = "paper",
@@ -261,7 +263,8 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
             topology=Path(topology), placement=Path(placement),
             traces_dir=None if traces_dir is None else Path(traces_dir), block_requests=block_requests,
             user_conditions=user_conditions, failures=failures, energy=energy,
-            target_latency_s=target_latency_s, load_peak_users=load_peak_users, target_compute=target_compute)
+            target_latency_s=target_latency_s, load_peak_users=load_peak_users, target_compute=target_compute,
+            baseline_reading=baseline_reading)
         check_contention_config(self.config)
         # The seed-0 world checks every setting and input file now, and its trace inputs and
         # scenario serve every later world (they do not depend on the seed).

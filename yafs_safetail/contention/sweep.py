@@ -103,7 +103,8 @@ def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line:
             safetail.training = False
             policies.append((safetail, variant.train_requests))
         for name in config.methods:
-            policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name)), 0))
+            policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name),
+                                           test_world.settings.baseline_reading), 0))
         for policy, train_requests in policies:
             run = run_policy(test_world, policy, target=config.target)
             row = {**config.point_columns(value, test_world), **summarise(run), "train_requests": train_requests}

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 # What C(s_j) of Eq. 4 is; in defaults.py, since the command line lists them before anything loads.
+from yafs_safetail.defaults import BASELINE_READINGS
 from yafs_safetail.defaults import TARGET_COMPUTES as TARGET_COMPUTES
 
 #: The calibrated values and their provenance (written by ``experiments/calibrate.py``).
@@ -84,6 +85,9 @@ class WorldSettings:
             compute model's prediction for this request's Γ_j at ν over its median prediction
             for the trace's inputs, i.e. the median compute time at ν of *this* input (the
             two agree when Γ holds nothing but the processes, as in use case 1).
+        baseline_reading: how MinLoad-x and MinProp-x choose (``defaults.BASELINE_READINGS``,
+            docs/calibration.md rule 5): ``"paper-text"``, the x best of all n servers (§V-B);
+            ``"original-code"``, the x best of three drawn at random for each request.
     """
 
     name: str = "landed"
@@ -95,6 +99,7 @@ class WorldSettings:
     nu: int | None = None
     target_latency_s: float | None = None
     target_compute: str = "trace_median"
+    baseline_reading: str = "paper-text"
 
     def __post_init__(self) -> None:
         checks = {
@@ -110,6 +115,7 @@ class WorldSettings:
             "target_latency_s": self.target_latency_s is None
             or (math.isfinite(self.target_latency_s) and self.target_latency_s > 0),
             "target_compute": self.target_compute in TARGET_COMPUTES,
+            "baseline_reading": self.baseline_reading in BASELINE_READINGS,
         }
         bad = [name for name, ok in checks.items() if not ok]
         if bad:

@@ -117,6 +117,9 @@ class WorldOverrides(Protocol):
     @property
     def target_compute(self) -> str | None: ...
 
+    @property
+    def baseline_reading(self) -> str | None: ...
+
 
 class WorldOverrideError(CalibrationError):
     """An override the world's settings refuse; the caller names it as its own option or field.

@@ -23,7 +23,7 @@ import numpy as np
 
 from yafs_safetail.defaults import SAFETAIL as SAFETAIL
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
+from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX, candidates_of
 from yafs_safetail.methods.hedging import Hedge, Tied
 from yafs_safetail.methods.learning import TRAIN_PHASE, LearningPolicy
 from yafs_safetail.methods.policy import (
@@ -94,12 +94,14 @@ def baseline_names(redundancy_levels: Sequence[int]) -> list[str]:
     return names
 
 
-def make_baseline(name: str, n_servers: int, rng: np.random.Generator) -> Policy:
+def make_baseline(name: str, n_servers: int, rng: np.random.Generator,
+                  reading: str = "paper-text") -> Policy:
     """A baseline from its name: ``"Oracle"``, ``"Rand-x"``, ``"MinLoad-x"``, ``"MinProp-x"``,
-    ``"Hedge"``, ``"Tied"``.
+    ``"Hedge"``, ``"Tied"``; ``reading`` is MinLoad-x's and MinProp-x's (``BASELINE_READINGS``,
+    docs/calibration.md rule 5: the world's ``baseline_reading``).
 
     Raises:
-        PolicyError: an unknown name or x outside 1..n.
+        PolicyError: an unknown name or reading, or x outside 1..n.
     """
     family, level = parse_method(name)
     if name == ORACLE:
@@ -111,6 +113,8 @@ def make_baseline(name: str, n_servers: int, rng: np.random.Generator) -> Policy
             f"method: unknown baseline {name!r}; expected Oracle, Rand-x, MinLoad-x, MinProp-x, "
             "Hedge or Tied"
         )
+    if family in ("MinLoad", "MinProp"):
+        return _FAMILY_POLICIES[family](n_servers, rng, level, candidates_of(reading, level, n_servers))
     return _FAMILY_POLICIES[family](n_servers, rng, level)
 
 

@@ -122,7 +122,7 @@ def summary_markdown(summary: pd.DataFrame, run: RunMetadata | None = None) -> s
     # The paper's numbers belong to its setting: outside it, a comparison would score nothing.
     scored_use_case = None if differences else use_case
     lines = _heading_lines(summary, run, differences)
-    lines += _latency_lines(summary)
+    lines += _latency_lines(summary, run.baseline_reading if run else None)
     table = speedup_table(summary, scored_use_case)
     lines += _speedup_sections(table)
     if use_case is not None:
@@ -156,12 +156,25 @@ def _heading_lines(summary: pd.DataFrame, run: RunMetadata | None, differences: 
     return lines
 
 
-def _latency_lines(summary: pd.DataFrame) -> list[str]:
+#: What summary.md says of each reading of MinLoad-x and MinProp-x (docs/calibration.md rule 5).
+READING_LINES = {
+    "paper-text": "MinLoad-x and MinProp-x as the paper's text reads (§V-B): the x best of all servers.",
+    "original-code": "MinLoad-x and MinProp-x as the code behind the paper's numbers chose: the x "
+                     "best of three servers drawn at random for each request.",
+}
+
+
+def reading_line(reading: str | None) -> str:
+    """The sentence naming the baselines' reading (empty for a run that did not record one)."""
+    return "" if reading is None else " " + READING_LINES.get(reading, f"Baselines: {reading}.")
+
+
+def _latency_lines(summary: pd.DataFrame, reading: str | None = None) -> list[str]:
     n_test = ", ".join(f"{m} {n}" for m, n in zip(summary["method"], summary["n_requests"],
                                                    strict=True))
     lines = [
         "Test phase only. Latencies in seconds; percentiles by numpy's linear interpolation. "
-        f"Test requests per method: {n_test or 'none'}.",
+        f"Test requests per method: {n_test or 'none'}.{reading_line(reading)}",
         "",
     ]
     rows = [

@@ -80,6 +80,13 @@ class RunMetadata:
         changed = self.extra.get(CHANGED_SETTINGS_KEY) or []
         return "" if not changed else "; " + ", ".join(map(str, changed))
 
+    @property
+    def baseline_reading(self) -> str | None:
+        """How this run's MinLoad-x and MinProp-x chose (``world.baseline_reading``): None in a
+        run written before the reading was recorded, which read the paper's text."""
+        world = self.extra.get("world")
+        return world.get("baseline_reading") if isinstance(world, dict) else None
+
     def to_json(self) -> str:
         """Deterministic JSON text (sorted keys, two-space indent, trailing newline)."""
         data = {k: v for k, v in asdict(self).items() if k != "extra"}

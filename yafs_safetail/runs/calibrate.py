@@ -60,6 +60,7 @@ from yafs_safetail.edge.inputs import load_inputs, load_scenario_for
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world
+from yafs_safetail.methods.baselines import candidates_of
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, make_baseline
 from yafs_safetail.results.files import PERCENTILES
 from yafs_safetail.results.paper import CALIBRATION_RATIOS, PaperRatio, paper_speedup
@@ -128,22 +129,34 @@ def settings_for(candidate: Mapping[str, Any]) -> WorldSettings:
 class SeedChoices:
     """The world-independent draws of the baselines' own generators for one seed.
 
-    Rand-1's choices and MinLoad-1's tie-break numbers come from the methods' generators
-    (``method_rng``), which never read the world, so they are drawn once per seed and reused
-    for every candidate (common random numbers across candidates).
+    Rand-1's choices, MinLoad-1's tie-break numbers (the paper's text) and MinLoad-1's and
+    MinProp-1's drawn candidates (the original code's reading) come from the methods'
+    generators (``method_rng``), which never read the world, so they are drawn once per seed
+    and reused for every candidate world (common random numbers across candidates).
     """
 
     rand_server: np.ndarray
     minload_tiebreak: np.ndarray
+    minload_candidates: np.ndarray
+    minprop_candidates: np.ndarray
+
+
+def _drawn_candidates(seed: int, method: str, n_servers: int, n_steps: int) -> np.ndarray:
+    """The servers the original code's reading of ``method`` draws for each request, in order."""
+    k = candidates_of("original-code", 1, n_servers)
+    assert k is not None
+    rng = method_rng(seed, method)
+    return np.array([rng.choice(n_servers, size=k, replace=False) for _ in range(n_steps)], dtype=np.int64)
 
 
 def seed_choices(seed: int, n_servers: int, n_steps: int) -> SeedChoices:
-    """Draw what the real Rand-1 and MinLoad-1 draw, in the order they draw it."""
+    """Draw what the real Rand-1, MinLoad-1 and MinProp-1 draw, in the order they draw it."""
     rand = make_baseline("Rand-1", n_servers, method_rng(seed, "Rand-1"))
     servers = np.array([rand.choose(None)[0] for _ in range(n_steps)], dtype=np.int64)
-    # MinLoad-x draws one number per server per request (its tie break), before sorting.
+    # MinLoad-x of the paper's text draws one number per server per request (its tie break).
     tiebreak = method_rng(seed, "MinLoad-1").random((n_steps, n_servers))
-    return SeedChoices(servers, tiebreak)
+    return SeedChoices(servers, tiebreak, _drawn_candidates(seed, "MinLoad-1", n_servers, n_steps),
+                       _drawn_candidates(seed, "MinProp-1", n_servers, n_steps))
 
 
 def method_latencies_s(world: EdgeWorld, choices: SeedChoices) -> dict[str, np.ndarray]:
@@ -162,16 +175,24 @@ def method_latencies_s(world: EdgeWorld, choices: SeedChoices) -> dict[str, np.n
         return np.where(np.isfinite(latency), latency, fallback_s)
 
     oracle = table.min(axis=1)
-    # MinLoad: fewest active users, ties to the smallest tie-break number (integer loads, draws
-    # in [0, 1): the sum orders exactly as the policy's lexsort does).
-    minload = np.argmin(world.background_users + choices.minload_tiebreak, axis=1)
-    # MinProp: the smallest median propagation, ties by index (a stable argmin).
-    minprop = int(np.argmin(world.median_propagation_s))
+    if world.settings.baseline_reading == "original-code":
+        # The first of the drawn servers with the fewest active users / the lowest median
+        # propagation (argmin keeps the first of equals, as the policies' stable sort does).
+        drawn_load = world.background_users[steps[:, None], choices.minload_candidates]
+        minload = choices.minload_candidates[steps, np.argmin(drawn_load, axis=1)]
+        drawn_propagation = world.median_propagation_s[choices.minprop_candidates]
+        minprop = choices.minprop_candidates[steps, np.argmin(drawn_propagation, axis=1)]
+    else:
+        # MinLoad: fewest active users, ties to the smallest tie-break number (integer loads,
+        # draws in [0, 1): the sum orders exactly as the policy's lexsort does).
+        minload = np.argmin(world.background_users + choices.minload_tiebreak, axis=1)
+        # MinProp: the smallest median propagation, ties by index (a stable argmin).
+        minprop = np.full(world.n_steps, int(np.argmin(world.median_propagation_s)))
     return {
         ORACLE: np.where(np.isfinite(oracle), oracle, fallback_s),
         "Rand-1": single(choices.rand_server),
         "MinLoad-1": single(minload),
-        "MinProp-1": single(np.full(world.n_steps, minprop)),
+        "MinProp-1": single(minprop),
     }
 
 

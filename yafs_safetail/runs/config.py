@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 # defaults and choices come from yafs_safetail.defaults; what runs a configuration is imported
 # where it is used.
 from yafs_safetail.defaults import (
+    BASELINE_READINGS,
     DEFAULT_FIGURE_FORMATS,
     DEFAULT_PLACEMENT,
     DEFAULT_STEP_INTERVAL_S,
@@ -146,7 +147,7 @@ class WorldSetup:
     world: WorldSettings | None = setting(
         None, "the world settings; None: the preset's world (methods.safetail.presets.PRESET_WORLDS)",
         flag="", optional=True)
-    # The world's settings a run may override (defaults.WORLD_OVERRIDES names these three;
+    # The world's settings a run may override (defaults.WORLD_OVERRIDES names these four;
     # edge.world_parts.apply_world_overrides applies them, as it does the contention world's).
     target_latency_s: float | None = setting(
         None, "a fixed target latency for every request, in seconds (default: Eq. 4's per-request "
@@ -158,6 +159,11 @@ class WorldSetup:
         None, "C(s_j) of Eq. 4: 'request', the median compute time at ν of the request's own input, "
         "or 'trace_median', the compute trace's median at ν for every request (default: the preset "
         "world's; deviation D11 in the documentation)", check=one_of(TARGET_COMPUTES), optional=True)
+    baseline_reading: str | None = setting(
+        None, "how MinLoad-x and MinProp-x choose: 'paper-text', the x best of all servers (§V-B), "
+        "or 'original-code', the x best of three drawn at random per request, as the code behind "
+        "the paper's numbers did (default: the preset world's; calibration rule 5 in the "
+        "documentation)", check=one_of(BASELINE_READINGS), optional=True)
 
 
     # Failures and energy (beyond the paper; docs/failures_energy.md). None everywhere: no
@@ -223,7 +229,8 @@ class LearnerOverrides:
 #: at its default (None), so every configuration that does not use them keeps its id.
 LATER_RESULT_FIELDS: tuple[str, ...] = (
     "failure_mttf_s", "failure_mttr_s", "failure_probability", "down_intervals", "timeout_s",
-    "server_idle_w", "server_max_w", "energy_price_per_j", "failure_penalty", "objective", "n_networks")
+    "server_idle_w", "server_max_w", "energy_price_per_j", "failure_penalty", "objective", "n_networks",
+    "baseline_reading")
 
 
 @dataclass(frozen=True)

@@ -76,7 +76,8 @@ class MethodsJob:
 
     def policies(self) -> list[Policy]:
         n = self.world.n_servers
-        made = [make_baseline(name, n, method_rng(self.seed, name)) for name in self.names]
+        reading = self.world.settings.baseline_reading
+        made = [make_baseline(name, n, method_rng(self.seed, name), reading) for name in self.names]
         return made + [m.make(n, method_rng(self.seed, m.name)) for m in self.user_methods]
 
     def run(self) -> tuple[list[pd.DataFrame], float]:

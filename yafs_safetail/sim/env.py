@@ -115,6 +115,8 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
             (``--load-peak-users``; None: the preset world's).
         target_compute: C(s_j) of Eq. 4, ``"request"`` or ``"trace_median"``
             (``--target-compute``; None: the preset world's).
+        baseline_reading: how the world's MinLoad-x and MinProp-x would choose
+            (``--baseline-reading``; None: the preset world's); recorded in the world's settings.
         failure_mttf_s: each server's mean time to failure (``--failure-mttf-s``; None: none).
         failure_mttr_s: each server's mean time to repair (``--failure-mttr-s``).
         failure_probability: each server's stationary down probability (``--failure-probability``).
@@ -148,6 +150,7 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
         target_latency_s: float | None = None,
         load_peak_users: float | None = None,
         target_compute: str | None = None,
+        baseline_reading: str | None = None,
         failure_mttf_s: float | None = None,
         failure_mttr_s: float | None = None,
         failure_probability: float | None = None,
@@ -169,7 +172,8 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
             use_case=use_case, preset=preset, steps_scale=steps_scale, topology=Path(topology),
             placement=Path(placement), traces_dir=Path(traces_dir), step_interval_s=step_interval_s,
             target_latency_s=target_latency_s, load_peak_users=load_peak_users,
-            target_compute=target_compute, failure_mttf_s=failure_mttf_s, failure_mttr_s=failure_mttr_s,
+            target_compute=target_compute, baseline_reading=baseline_reading,
+            failure_mttf_s=failure_mttf_s, failure_mttr_s=failure_mttr_s,
             failure_probability=failure_probability,
             down_intervals=None if down_intervals is None else Path(down_intervals), timeout_s=timeout_s,
             server_idle_w=server_idle_w, server_max_w=server_max_w,
