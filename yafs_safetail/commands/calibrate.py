@@ -16,6 +16,7 @@ the `paper` and `tuned` presets' world reads.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shlex
 import sys
 from collections.abc import Sequence
@@ -58,14 +59,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_verbosity(args)
     # The arguments are checked: now the calibration, with NumPy and the world.
     from yafs_safetail.edge.calibration import seed_set
-    from yafs_safetail.runs.calibrate import GRID, CalibrationConfig, calibrate, read_grid
+    from yafs_safetail.runs.calibrate import (
+        GRID,
+        CalibrationConfig,
+        calibrate,
+        check_calibration_config,
+        read_grid,
+    )
 
     command = shlex.join([*invocation("experiments/calibrate.py"), *(sys.argv[1:] if argv is None else argv)])
     seeds = tuple(seed_set("world_calibration") if args.seeds is None else args.seeds)
     grid = GRID if args.grid is None else read_grid(args.grid)
-    workers = local_workers(args.workers, CALIBRATION_WORKER_BYTES)
-    document = calibrate(CalibrationConfig(seeds=seeds, grid=grid, workers=workers,
-                                           out_dir=args.out, apply=args.apply, command=command))
+    config = CalibrationConfig(seeds=seeds, grid=grid, workers=1, out_dir=args.out, apply=args.apply,
+                               command=command)
+    check_calibration_config(config)  # bad input is one line, before anything is logged
+    config = dataclasses.replace(config, workers=local_workers(args.workers, CALIBRATION_WORKER_BYTES))
+    document = calibrate(config)
     provenance = document["provenance"]
     print_result(args, args.out,
                  f"best: {document['parameters']} ({document['readings']['load_start']} load start), "

@@ -301,7 +301,7 @@ def read_grid(path: Path) -> dict[str, tuple[Any, ...]]:
     return {name: tuple(data[name]) for name in GRID}
 
 
-def _check(config: CalibrationConfig) -> None:
+def check_calibration_config(config: CalibrationConfig) -> None:
     if not config.seeds or len(set(config.seeds)) != len(config.seeds):
         raise CalibrationRunError(f"--seeds: give distinct seeds, got {list(config.seeds)}")
     if set(config.grid) != set(GRID):
@@ -342,7 +342,7 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
     """
     if log is None:
         log = logging.getLogger(__name__).info
-    _check(config)
+    check_calibration_config(config)
     started = time.perf_counter()
     candidates = grid_candidates(config.grid)
     log(f"{len(candidates)} candidates x {len(config.seeds)} seeds")
