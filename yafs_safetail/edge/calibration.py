@@ -137,9 +137,11 @@ CALIBRATED_V1 = WorldSettings(name="calibrated-v1", propagation_rtt_fraction=0.5
                               target_compute="request")
 
 #: The readings every calibrated world uses (docs/deviations.md D7, D11; ν None: each use
-#: case's knee-rule ν, docs/calibration.md rule 2); not fitted.
+#: case's knee-rule ν, docs/calibration.md rule 2; the baselines as the original code chose,
+#: rule 5); not fitted.
 CALIBRATED_READINGS: Mapping[str, Any] = {"propagation_rtt_fraction": 0.5,
-                                          "target_compute": "request", "nu": None}
+                                          "target_compute": "request", "nu": None,
+                                          "baseline_reading": "original-code"}
 
 
 def seed_set(name: str, path: Path | str = SEED_SETS_FILE) -> list[int]:
