@@ -63,3 +63,9 @@ def test_the_scorecard_table_reads_the_fidelity_benchmark_lines():
     assert "| 18 (held out: 6 of 7) |" in table
     assert "of the 9 any policy could hold (of 11) | 5 |" in table
     assert "| 0.24 / 0.30 / 0.81 |" in table and "| 0.1% |" in table and "| 4 of 5 seeds |" in table
+
+
+def test_the_scorecard_reads_the_refit_held_out_seeds():
+    from yafs_safetail.edge.calibration import seed_set
+
+    assert readme_tables.SCORECARD_SEEDS == ",".join(map(str, seed_set("refit_held_out")))
