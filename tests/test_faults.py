@@ -258,8 +258,10 @@ def test_a_killed_campaign_worker_fails_its_run_alone_and_the_same_command_compl
     # The files of the same campaign never killed: the golden check's (its normalised digests).
     assert digests(out) == json.loads(GOLDEN_FILE.read_text())["campaign"]
     # Nothing of the killed attempt is left: no temporary folder, no run's lock; only the
-    # campaign's own files (its lock file included, as after any campaign) and its runs.
+    # campaign's own files (its lock file and latency tables included, as after any campaign)
+    # and its runs.
     assert sorted(p.name for p in out.iterdir()) == sorted([".campaign.lock", "campaign.json", "campaign.log",
+                                                            "latency.csv", "latency.md",
                                                             *(spec.name for spec in specs)])
 
 

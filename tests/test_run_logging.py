@@ -274,9 +274,14 @@ CAMPAIGN = REPOSITORY / "experiments" / "campaign.py"
 
 
 def test_a_quiet_campaign_shows_only_its_failed_run(tmp_path: Path) -> None:
+    # A policy that fails only when a run asks it to choose: the grid's own check (which loads
+    # the class) passes, and that one run fails.
+    (tmp_path / "boom.py").write_text(
+        "from yafs_safetail.methods import Policy\n\n\nclass Boom(Policy):\n"
+        "    def choose(self, observation):\n        raise RuntimeError('boom')\n")
     grid = tmp_path / "grid.toml"
     grid.write_text('[base]\nsteps_scale = 0.013\nfigures = false\n[axes]\n'
-                    'topology = ["topologies/paper_5servers.json", "/nonexistent/topology.json"]\n')
+                    'methods = [[], ["boom.py:Boom"]]\n')
     out = tmp_path / "campaign"
     command = [sys.executable, str(CAMPAIGN), "--grid", str(grid), "--out", str(out), "--quiet"]
     done = subprocess.run(command, cwd=REPOSITORY, capture_output=True, text=True, timeout=600)
@@ -284,7 +289,7 @@ def test_a_quiet_campaign_shows_only_its_failed_run(tmp_path: Path) -> None:
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("warning: [campaign ") and "failed" in lines[0], done.stderr
     assert done.stdout == ""  # a campaign with a failed run has no folder to hand on
-    assert "topology file not found" in lines[0]
+    assert "Boom.choose() raised RuntimeError" in lines[0]
     # The campaign's own log keeps every line; the finished run has its run.log.
     assert "started" in (out / "campaign.log").read_text()
     finished = [p for p in out.iterdir() if (p / "run.json").is_file()]
