@@ -60,6 +60,7 @@ def test_two_seeds_one_use_case_make_a_report(uncut: Path) -> None:
         assert (out / "uc1-paper" / f"seed{seed}" / "summary.csv").is_file()
     report = (out / "REPORT.md").read_text()
     assert "## Use case 1" in report and "preset `paper`" in report
+    assert "as the code behind the paper's numbers chose" in report  # the baselines' reading (D16)
     assert "Oracle over SafeTail" in report and "SafeTail over Rand-1" in report
     assert "| 0 |" in report and "| 1 |" in report  # one diagnostics row per seed
     assert "### Why our ratios may differ" in report

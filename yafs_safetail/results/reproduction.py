@@ -28,6 +28,7 @@ from yafs_safetail.figures_multiseed import (
     draw_multiseed_figures,
 )
 from yafs_safetail.results import feasibility, fidelity, latex, seed_tables
+from yafs_safetail.results.report import reading_line
 from yafs_safetail.results.stats import metrics_over_seeds, speedups_over_seeds
 
 #: Each run's folder under the reproduction's folder.
@@ -219,7 +220,7 @@ def _section(use_case: int, preset: str, folders: Sequence[Path], report_dir: Pa
         "",
         f"{len(folders)} seed(s) ({', '.join(str(results.read_run_json(f).seed) for f in folders)}); "
         f"{run.train_steps} training steps, {run.test_steps} test steps per method; "
-        f"topology `{run.topology}`.",
+        f"topology `{run.topology}`.{reading_line(run.baseline_reading)}",
         "",
         *_table_block("Latency (test phase)", results.aggregate_markdown(stats), names["latency"]),
         *_table_block("Our ratios beside the paper's", results.comparison_markdown(ratios),
