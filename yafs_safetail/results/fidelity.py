@@ -5,8 +5,7 @@ claims (``paper_results.PAPER_CLAIMS``), across the seeds of one preset: the pap
 ours (a ratio: the geometric mean over seeds with a 95% t-interval on the log scale, so it never
 leaves (0, ∞); a claim: the share of seeds in which it holds), the relative error, whether it
 is within ±20%, and whether the number belongs to the calibration subset (the sixteen numbers
-whose combination ``experiments/calibrate.py`` fits the world to, and since calibration rule 6
-every number and claim of use case 3, whose compute scale was chosen from them) or is held out. SafeTail's mean access rate per use case
+whose combination ``experiments/calibrate.py`` fits the world to) or is held out. SafeTail's mean access rate per use case
 (the goal: at most 0.5) is reported beside them.
 
 Reads summaries only (``summary.csv`` of each run folder); never the simulator.
@@ -25,7 +24,6 @@ from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.methods.registry import SAFETAIL
 from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.paper import (
-    CALIBRATED_USE_CASES,
     PAPER_CLAIMS,
     PAPER_RATIOS,
     PERCENTILE_NAMES,
@@ -91,8 +89,7 @@ def scorecard(summaries: Mapping[int, Sequence[pd.DataFrame]]) -> pd.DataFrame:
             "statement": claim.text, "paper": 1.0, "ours": share, "ci_low": math.nan,
             "ci_high": math.nan, "n_seeds": len(checked), "relative_error": math.nan,
             # A claim holds when it holds in most seeds.
-            "within_tolerance": bool(checked) and share > 0.5,
-            "subset": "calibration" if claim.use_case in CALIBRATED_USE_CASES else "held-out",
+            "within_tolerance": bool(checked) and share > 0.5, "subset": "held-out",
         })
     for use_case in sorted(summaries):
         runs = summaries[use_case]

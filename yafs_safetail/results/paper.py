@@ -163,28 +163,15 @@ PAPER_CLAIMS: tuple[PaperClaim, ...] = (
 CALIBRATION_REFERENCES: tuple[str, ...] = ("Rand-1", "MinLoad-1", "MinProp-1", ORACLE)
 
 
-#: Use cases whose every stated number and claim is on the calibration side: use case 3, whose
-#: compute scale docs/calibration.md rule 6 chose from what its numbers imply (2026-11-27).
-CALIBRATED_USE_CASES: tuple[int, ...] = (3,)
-
-
-def fitted_by_the_world(ratio: PaperRatio) -> bool:
-    """Whether ``ratio`` is one of the sixteen numbers rule 1's world fit consumes (use case 1:
-    SafeTail against the x = 1 baselines and against Oracle, in whichever direction the paper
-    states it)."""
+def in_calibration_subset(ratio: PaperRatio) -> bool:
+    """Whether ``ratio`` is one of the sixteen calibration numbers (use case 1: SafeTail against
+    the x = 1 baselines and against Oracle, in whichever direction the paper states it)."""
     other = ratio.reference if ratio.method == SAFETAIL else ratio.method
     return (ratio.use_case == 1 and SAFETAIL in (ratio.method, ratio.reference)
             and other in CALIBRATION_REFERENCES)
 
 
-def in_calibration_subset(ratio: PaperRatio) -> bool:
-    """Whether ``ratio`` is on the calibration side of a report: one of rule 1's sixteen, or a
-    number of a use case in :data:`CALIBRATED_USE_CASES`."""
-    return fitted_by_the_world(ratio) or ratio.use_case in CALIBRATED_USE_CASES
-
-
-#: The numbers rule 1's objective consumes (``runs.calibrate``).
-CALIBRATION_RATIOS: tuple[PaperRatio, ...] = tuple(r for r in PAPER_RATIOS if fitted_by_the_world(r))
+CALIBRATION_RATIOS: tuple[PaperRatio, ...] = tuple(r for r in PAPER_RATIOS if in_calibration_subset(r))
 
 
 def paper_speedup(use_case: int, method: str, reference: str, percentile: int) -> float | None:
