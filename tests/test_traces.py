@@ -107,6 +107,17 @@ def test_generator_is_deterministic_and_reproduces_committed_csvs(tmp_path):
     assert (tmp_path / "c" / "load.csv").read_bytes() != (tmp_path / "a" / "load.csv").read_bytes()
 
 
+def test_another_uc3_scale_changes_only_the_uc3_trace(tmp_path):
+    # docs/calibration.md rule 6: UC3's one-process mean per clip is a parameter of the generator.
+    written = generate.write_csvs(2024, tmp_path / "s", uc3_mean_latency_s=0.5)
+    for path in written:
+        same = path.read_bytes() == (DEFAULT_TRACE_DIR / path.name).read_bytes()
+        assert same is (path.name != "compute_uc3.csv"), path.name
+    uc3 = pd.read_csv(tmp_path / "s" / "compute_uc3.csv")
+    one_process = uc3[uc3["n_processes"] == 1]["latency_s"]
+    assert abs(one_process.mean() - 0.5) < 0.01
+
+
 def test_generated_csvs_are_small():
     total = sum((DEFAULT_TRACE_DIR / name).stat().st_size for name in CSV_NAMES)
     assert total < 3_000_000

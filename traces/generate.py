@@ -9,6 +9,7 @@ Usage::
     python traces/generate.py --seed 2024 --out traces/          # CSVs + compute models
     python traces/generate.py --seed 2024 --out /tmp/t --no-models
     python traces/generate.py --report --out traces/             # measured vs published
+    python traces/generate.py --out /tmp/t --uc3-mean-latency-s 0.5   # another UC3 scale (rule 6)
 """
 
 from __future__ import annotations
@@ -239,7 +240,8 @@ def uc2_mean_latency_s() -> float:
 
 
 def uc3_mean_latency_s() -> float:
-    """UC3 one-process mean from the σ_1 / mean ratio UC1 and UC2 share (README §4.3)."""
+    """UC3 one-process mean from the σ_1 / mean ratio UC1 and UC2 share (README §4.3): 4.17 s,
+    the shipped trace's. docs/calibration.md rule 6 tried others (``--uc3-mean-latency-s``)."""
     ratio = 0.5 * (pub.SIGMA_S[1][0] / pub.UC1_ONE_PROCESS_S["mean"] + pub.SIGMA_S[2][0] / uc2_mean_latency_s())
     return pub.SIGMA_S[3][0] / ratio
 
@@ -278,13 +280,15 @@ def generate_compute_uc2(rng: np.random.Generator) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-def generate_compute_uc3(rng: np.random.Generator) -> pd.DataFrame:
+def generate_compute_uc3(rng: np.random.Generator, mean_s: float | None = None) -> pd.DataFrame:
+    """UC3's compute trace; ``mean_s`` the one-process mean per clip (None: the shipped
+    trace's, :func:`uc3_mean_latency_s`; docs/calibration.md rule 6's grid tried others)."""
     slowdown = pub.slowdown_factors(3)
     lo, hi = AUDIO_DURATION_RANGE_S
     duration = AUDIO_DURATION_MEDIAN_S * np.exp(AUDIO_DURATION_LOG_SIGMA * rng.standard_normal(COMPUTE_ROWS_PER_K))
     samples = np.rint(np.clip(duration, lo, hi) * AUDIO_SAMPLE_RATE_HZ).astype(np.int64)
     duration_s = samples / AUDIO_SAMPLE_RATE_HZ
-    mean_s = uc3_mean_latency_s()
+    mean_s = uc3_mean_latency_s() if mean_s is None else mean_s
     # The per-second cost is set so the one-process mean over the clips is the derived UC3 mean.
     per_audio_second_s = (1.0 - UC3_FIXED_SHARE) * mean_s / float(duration_s.mean())
     one_process_s = UC3_FIXED_SHARE * mean_s + per_audio_second_s * duration_s
@@ -355,8 +359,13 @@ CSV_GENERATORS: dict[str, Callable[[np.random.Generator], pd.DataFrame]] = {
 }
 
 
-def write_csvs(seed: int, out_dir: Path) -> list[Path]:
+def write_csvs(seed: int, out_dir: Path, uc3_mean_latency_s: float | None = None) -> list[Path]:
     """Write every trace CSV; each file has its own child stream so files are independent.
+
+    Args:
+        seed: the traces' seed.
+        out_dir: where they go.
+        uc3_mean_latency_s: UC3's one-process mean per clip (None: the shipped trace's, 4.17 s).
 
     Returns:
         The paths written.
@@ -365,7 +374,9 @@ def write_csvs(seed: int, out_dir: Path) -> list[Path]:
     children = np.random.SeedSequence(seed).spawn(len(CSV_GENERATORS))
     written = []
     for (name, generate), child in zip(CSV_GENERATORS.items(), children, strict=True):
-        frame = generate(np.random.default_rng(child))
+        rng = np.random.default_rng(child)
+        frame = (generate_compute_uc3(rng, uc3_mean_latency_s) if generate is generate_compute_uc3
+                 else generate(rng))
         path = out_dir / name
         frame.to_csv(path, index=False, lineterminator="\n", float_format="%.6g")
         written.append(path)
@@ -378,6 +389,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent)
     parser.add_argument("--no-models", action="store_true", help="write the CSVs only (no TensorFlow)")
     parser.add_argument("--report", action="store_true", help="print measured vs published statistics of --out and exit")
+    parser.add_argument("--uc3-mean-latency-s", type=float, default=None,
+                        help="UC3's one-process mean compute time per clip (default: README §4.4's "
+                             "derivation, 4.17 s; docs/calibration.md rule 6 tried others)")
     args = parser.parse_args(argv)
     if args.report:
         # The checks live beside this script (check_traces.py), loaded by path like this one.
@@ -385,7 +399,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         checks = sys.modules[spec.name] = importlib.util.module_from_spec(spec)  # for its dataclass
         spec.loader.exec_module(checks)
         return 0 if checks.print_report(args.out) else 1
-    for path in write_csvs(args.seed, args.out):
+    if args.uc3_mean_latency_s is not None and not args.uc3_mean_latency_s > 0:
+        parser.error(f"--uc3-mean-latency-s: expected a positive number of seconds, got {args.uc3_mean_latency_s}")
+    for path in write_csvs(args.seed, args.out, args.uc3_mean_latency_s):
         print(f"wrote {path} ({path.stat().st_size} bytes)")
     if not args.no_models:
         from yafs_safetail.edge.compute import train_compute_models  # imports TensorFlow
