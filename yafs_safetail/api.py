@@ -319,12 +319,12 @@ COMPARED_METRICS: tuple[str, ...] = ("p50_s", "p95_s", "p99_s", "mean_access_rat
 def compare_over_seeds(folders: Sequence[str | os.PathLike[str]], methods: Sequence[str] | None = None,
                        metrics: Sequence[str] = COMPARED_METRICS) -> pd.DataFrame:
     """Methods compared over runs of one use case (one run per seed): the mean over seeds and
-    its 95% percentile-bootstrap interval (``results.stats.bootstrap_interval``).
+    its 95% percentile-bootstrap interval (``results.over_seeds.bootstrap_interval``).
 
     Args:
         folders: results folders of one use case, one per seed.
         methods: the methods to keep, in this order (default: every method, report order).
-        metrics: summary columns (``results.stats.AGGREGATE_METRICS``).
+        metrics: summary columns (``results.over_seeds.AGGREGATE_METRICS``).
 
     Returns:
         One row per method: for each metric ``<metric>``, ``<metric>_low`` and
@@ -334,7 +334,7 @@ def compare_over_seeds(folders: Sequence[str | os.PathLike[str]], methods: Seque
         ValueError: no folders, bad results files, runs mixing use cases, or an unknown method
             or metric.
     """
-    from yafs_safetail.results.stats import AGGREGATE_METRICS, aggregate_summaries
+    from yafs_safetail.results.over_seeds import AGGREGATE_METRICS, aggregate_summaries
 
     bad_metric = [m for m in metrics if m not in AGGREGATE_METRICS]
     if bad_metric or not metrics:

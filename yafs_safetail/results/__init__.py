@@ -38,6 +38,11 @@ from yafs_safetail.results.files import (
     write_requests_csv,
     write_text_atomic,
 )
+from yafs_safetail.results.over_seeds import (
+    aggregate_summaries,
+    bootstrap_interval,
+    geometric_interval,
+)
 from yafs_safetail.results.paper import (
     PAPER_CLAIMS,
     PAPER_RATIOS,
@@ -68,10 +73,7 @@ from yafs_safetail.results.run_json import (
 from yafs_safetail.results.stats import (
     abs_reward_by_episode,
     access_rate_by_episode,
-    aggregate_summaries,
     beta_averages,
-    bootstrap_interval,
-    geometric_interval,
     latency_deviation_by_episode,
     speedup,
     summarize,

@@ -26,8 +26,9 @@ from yafs_safetail.edge.calibration import WORLD_NAMES
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, REPOSITORY
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, baselines_of
 from yafs_safetail.results.files import PERCENTILES
+from yafs_safetail.results.over_seeds import geometric_interval, load_runs
 from yafs_safetail.results.run_json import PLACEMENT_KEY, WORLD_OVERRIDES_KEY, RunMetadata
-from yafs_safetail.results.stats import _load_runs, geometric_interval, speedup
+from yafs_safetail.results.stats import speedup
 
 PERCENTILE_NAMES: dict[int, str] = {50: "median", 90: "p90", 95: "p95", 99: "p99"}
 
@@ -361,7 +362,7 @@ def aggregate_speedups(directories: Sequence[str | os.PathLike[str]]) -> pd.Data
     Returns:
         Columns ``AGGREGATE_SPEEDUP_COLUMNS``.
     """
-    runs = _load_runs(directories)
+    runs = load_runs(directories)
     use_case = runs[0][0].use_case
     tables = [speedup_table(summary, use_case) for _, summary in runs]
     keys = pd.concat(tables)[["method", "reference", "percentile", "paper", "stated"]]

@@ -28,8 +28,8 @@ from yafs_safetail.figures_multiseed import (
     draw_multiseed_figures,
 )
 from yafs_safetail.results import feasibility, fidelity, latex, seed_tables
+from yafs_safetail.results.over_seeds import metrics_over_seeds, speedups_over_seeds
 from yafs_safetail.results.report import reading_line
-from yafs_safetail.results.stats import metrics_over_seeds, speedups_over_seeds
 
 #: Each run's folder under the reproduction's folder.
 RUN_FOLDER = "uc{use_case}-{preset}/seed{seed}"

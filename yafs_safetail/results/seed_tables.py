@@ -5,8 +5,8 @@ REPORT.md shows these tables for the users' own policies (``reproduce_all.py --m
 results/reproduction.py); a campaign ends with the latency table of what it ran, one per
 setting of the grid's axes other than the seed (:func:`write_campaign_latency`:
 ``OUT/latency.md`` and ``OUT/latency.csv``). The numbers come from ``results.stats``
-(:func:`~yafs_safetail.results.stats.metrics_over_seeds`,
-:func:`~yafs_safetail.results.stats.speedups_over_seeds`); this module only lays them out.
+(:func:`~yafs_safetail.results.over_seeds.metrics_over_seeds`,
+:func:`~yafs_safetail.results.over_seeds.speedups_over_seeds`); this module only lays them out.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ from yafs_safetail.results.files import (
     read_summary_csv,
     write_text_atomic,
 )
+from yafs_safetail.results.over_seeds import SEED_TABLE_METRICS, metrics_over_seeds
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 from yafs_safetail.results.report import frame_markdown
 from yafs_safetail.results.run_json import read_run_json
-from yafs_safetail.results.stats import SEED_TABLE_METRICS, metrics_over_seeds
 
 #: Over the latency table: what its cells are.
 LATENCY_NOTE = ("Test phase; mean over seeds [95% bootstrap interval over seeds]; servers per "
@@ -78,7 +78,7 @@ def latency_table(stats: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
     """The latency table as display strings, one row per method (markdown and LaTeX alike).
 
     Args:
-        stats: from :func:`~yafs_safetail.results.stats.metrics_over_seeds` with
+        stats: from :func:`~yafs_safetail.results.over_seeds.metrics_over_seeds` with
             ``SEED_TABLE_METRICS``.
         digits: decimals shown (servers per request: two).
 
@@ -102,7 +102,7 @@ def speedup_table(speedups: pd.DataFrame) -> pd.DataFrame:
     """Speed-ups as display strings, one row per (method, reference).
 
     Args:
-        speedups: from :func:`~yafs_safetail.results.stats.speedups_over_seeds`.
+        speedups: from :func:`~yafs_safetail.results.over_seeds.speedups_over_seeds`.
 
     Returns:
         Columns ``method, over, seeds, median, p90, p95, p99``.
