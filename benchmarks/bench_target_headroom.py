@@ -29,7 +29,7 @@ from yafs_safetail.edge.calibration import calibrated_settings, read_calibration
 from yafs_safetail.edge.inputs import load_inputs, load_scenario_for
 from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, build_world
+from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL
 from yafs_safetail.results.paper import paper_speedup
 from yafs_safetail.runs.calibrate import GRID
@@ -55,23 +55,25 @@ def headroom(use_case_number: int, gamma: float, load_peak: float, seeds: list[i
     parameters = dict(shipped["parameters"], bandwidth_share_exponent=gamma,
                       load_peak_users=load_peak)
     settings = calibrated_settings(parameters, shipped["readings"])
-    rows = []
-    for seed in seeds:
-        world = build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
-                            episode_steps=DEFAULT_EPISODE_STEPS, settings=settings)
-        table = world.copy_latency_table_s()
-        best = np.argmin(np.where(np.isfinite(table), table, np.inf), axis=1)
-        oracle_s = table[np.arange(world.n_steps), best]
-        served = np.isfinite(oracle_s)
-        compute_s = world.compute_by_processes_s[np.arange(world.n_steps), best,
-                                                 np.minimum(world.background_users[
-                                                     np.arange(world.n_steps), best],
-                                                     world.max_load - 1)]
-        mean_target_s = float(np.mean(world.target_s))
-        p50, p90 = np.percentile(oracle_s[served], (50, 90))
-        rows.append((mean_target_s / p50, mean_target_s / p90,
-                     float(np.median(compute_s[served]) / p50)))
+    rows = [target_over_oracle(build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
+                                           episode_steps=DEFAULT_EPISODE_STEPS, settings=settings))
+            for seed in seeds]
     return tuple(float(v) for v in np.mean(rows, axis=0))  # type: ignore[return-value]
+
+
+def target_over_oracle(world: EdgeWorld) -> tuple[float, float, float]:
+    """One world's mean τ over Oracle's p50 and p90, and compute's share of Oracle's median."""
+    table = world.copy_latency_table_s()
+    best = np.argmin(np.where(np.isfinite(table), table, np.inf), axis=1)
+    oracle_s = table[np.arange(world.n_steps), best]
+    served = np.isfinite(oracle_s)
+    compute_s = world.compute_by_processes_s[np.arange(world.n_steps), best,
+                                             np.minimum(world.background_users[
+                                                 np.arange(world.n_steps), best],
+                                                 world.max_load - 1)]
+    mean_target_s = float(np.mean(world.target_s))
+    p50, p90 = np.percentile(oracle_s[served], (50, 90))
+    return mean_target_s / p50, mean_target_s / p90, float(np.median(compute_s[served]) / p50)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from bench_target_headroom import target_over_oracle  # beside this script (run from benchmarks/)
 
 import yafs_safetail
 from yafs_safetail.edge.calibration import (
@@ -77,15 +78,9 @@ def uc3_headroom(point: dict[str, object], traces: Path, seeds: list[int], n_ste
     scenario = load_scenario_for(inputs, DEFAULT_TOPOLOGY, DEFAULT_PLACEMENT)
     settings = calibrated_settings({k: point[k] for k in CALIBRATED_PARAMETERS},
                                    dict(READINGS, load_start=point["load_start"]))
-    rows = []
-    for seed in seeds:
-        world = build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
-                            episode_steps=DEFAULT_EPISODE_STEPS, settings=settings)
-        oracle_s = world.copy_latency_table_s().min(axis=1)
-        served = np.isfinite(oracle_s)
-        p50, p90 = np.percentile(oracle_s[served], (50, 90))
-        target_s = float(np.mean(world.target_s))
-        rows.append((target_s / p50, target_s / p90))
+    rows = [target_over_oracle(build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
+                                           episode_steps=DEFAULT_EPISODE_STEPS, settings=settings))[:2]
+            for seed in seeds]
     return float(np.mean([r[0] for r in rows])), float(np.mean([r[1] for r in rows]))
 
 
