@@ -116,6 +116,12 @@ def choice_problem(chosen: object, n_servers: int) -> tuple[tuple[int, ...], str
 def checked_choice(chosen: Sequence[int], n_servers: int, name: str) -> tuple[int, ...]:
     """What ``choose`` returned as Python ints in its order (a hedge tries them in that order),
     or PolicyError naming the method, the choice and what is wrong (:func:`choice_problem`)."""
+    # Every request of every method passes here: a valid tuple or list of Python ints (what the
+    # baselines and most policies return) is accepted without choice_problem's fuller reading.
+    if type(chosen) in (tuple, list) and all(type(i) is int for i in chosen):
+        servers = tuple(chosen)
+        if servers and len(set(servers)) == len(servers) and min(servers) >= 0 and max(servers) < n_servers:
+            return servers
     servers, problem = choice_problem(chosen, n_servers)
     if problem:
         raise PolicyError(f"{name}: invalid subset {chosen!r} for {n_servers} servers: {problem}")
