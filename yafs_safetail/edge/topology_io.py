@@ -4,7 +4,10 @@ A SafeTail topology is a YAFS topology JSON (``entity`` + ``link``) with a few e
 that YAFS itself ignores:
 
 * every entity has ``"type"``: ``"user"`` (exactly one), ``"access_point"`` (exactly one) or
-  ``"edge_server"`` (one or more); the user may carry ``"x"``, ``"y"`` (its location L);
+  ``"edge_server"`` (one or more); the user may carry ``"x"``, ``"y"`` (its location L,
+  metres); the user and the edge servers may carry positions, in metres (``"x"``, ``"y"``) or
+  in degrees (``"lat"``, ``"lon"``), one of the two in a whole file, every server or none
+  (``edge.positions``; a user who moves needs them, nothing else reads them);
   an edge server may carry ``"load_device"``, the load-trace device that drives its
   background users (default: the server's index), and, for the contention world
   (``yafs_safetail.contention``), ``"capacity"`` (copies it runs at once; default: the load
@@ -25,6 +28,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeGuard
+
+from yafs_safetail.edge.positions import (
+    DEGREE_KEYS,
+    METRE_KEYS,
+    Origin,
+    PositionError,
+    check_degrees,
+    project_m,
+)
 
 USER_TYPE = "user"
 ACCESS_POINT_TYPE = "access_point"
@@ -103,7 +115,8 @@ class EdgeTopology:
         edge_server_nodes: edge server node ids in file order.
         conditions: distance condition per edge server node.
         load_devices: load-trace device per edge server node, or None (default: index).
-        user_location: (x, y) of the user; zeros when absent.
+        user_location: (x, y) of the user in metres (projected when the file gives degrees);
+            zeros when absent.
         user_link_bandwidth_bps: the user–access point link's bandwidth (its YAFS ``BW``, in
             megabytes per second, converted to bits per second).
         user_link_pr_s: PR of the user–access point link (s).
@@ -112,6 +125,10 @@ class EdgeTopology:
         server_link_pr_s: PR of each access point–server link, per edge server node (s).
         server_ipt: each edge server's YAFS ``IPT`` (``REFERENCE_SERVER_IPT`` when absent).
         server_capacity: each edge server's ``capacity`` (None when absent).
+        server_positions_m: each edge server's (x, y) in metres, per edge server node; empty
+            when the file places no server.
+        origin: the point the file's degrees are projected around (the first entity with
+            degrees); None when the file gives metres or no position.
     """
 
     source: str
@@ -128,6 +145,8 @@ class EdgeTopology:
     server_link_pr_s: dict[int | str, float]
     server_ipt: dict[int | str, float] = field(default_factory=dict)
     server_capacity: dict[int | str, int | None] = field(default_factory=dict)
+    server_positions_m: dict[int | str, tuple[float, float]] = field(default_factory=dict)
+    origin: Origin | None = None
 
 
 @dataclass
@@ -185,6 +204,9 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         raise ScenarioError(name, "entity.type", "no 'edge_server' entity")
     read = _read_links(name, links, nodes, user, access_point)
     assert read.user_bps is not None and read.user_pr_s is not None  # _read_links checked both
+    origin, positions = _read_positions(name, entities)
+    nodes.user_location = positions.get(user, nodes.user_location)
+    server_positions = {node: positions[node] for node in nodes.server_order if node in positions}
     return EdgeTopology(
         source=name,
         data=data,
@@ -200,6 +222,8 @@ def load_topology(source: JsonSource) -> EdgeTopology:
         server_link_pr_s=read.server_pr_s,
         server_ipt=nodes.server_ipt,
         server_capacity=nodes.server_capacity,
+        server_positions_m=server_positions,
+        origin=origin,
     )
 
 
@@ -223,21 +247,64 @@ def _read_entities(name: str, entities: list[Any]) -> _Nodes:
                 f"{EDGE_SERVER_TYPE!r}",
             )
         nodes.types[node] = kind
-        if kind == USER_TYPE:
-            nodes.user_location = _user_location(name, where, entity)
         if kind == EDGE_SERVER_TYPE:
             _read_server(name, where, node, entity, nodes)
     return nodes
 
 
-def _user_location(name: str, where: str, entity: dict[str, Any]) -> tuple[float, float]:
-    coords = []
-    for key in ("x", "y"):
-        value = entity.get(key, 0.0)
-        if not _is_number(value):
-            raise ScenarioError(name, f"{where}.{key}", f"not a finite number: {value!r}")
-        coords.append(float(value))
-    return coords[0], coords[1]
+def _read_positions(name: str, entities: list[dict[str, Any]]
+                    ) -> tuple[Origin | None, dict[int | str, tuple[float, float]]]:
+    """The user's and the edge servers' positions in metres, and the origin of degrees.
+
+    One unit in a whole file (metres or degrees), and every edge server placed or none: a
+    scenario where some servers have no place has no distance to them.
+    """
+    first_of_unit: dict[str, str] = {}  # "metres" / "degrees" -> the first entity giving them
+    read: dict[int | str, tuple[float, float]] = {}
+    placed_servers: list[str] = []
+    unplaced_servers: list[str] = []
+    for index, entity in enumerate(entities):
+        where, kind = f"entity[{index}]", entity["type"]
+        if kind not in (USER_TYPE, EDGE_SERVER_TYPE):
+            continue
+        has_metres = any(key in entity for key in METRE_KEYS)
+        has_degrees = any(key in entity for key in DEGREE_KEYS)
+        if has_metres and has_degrees:
+            raise ScenarioError(name, where, "mixes metres (x, y) and degrees (lat, lon); give one of the two")
+        if not (has_metres or has_degrees):
+            if kind == EDGE_SERVER_TYPE:
+                unplaced_servers.append(where)
+            continue
+        unit, other, keys = ("metres", "degrees", METRE_KEYS) if has_metres else ("degrees", "metres", DEGREE_KEYS)
+        first_of_unit.setdefault(unit, where)
+        if other in first_of_unit:
+            raise ScenarioError(name, where, f"gives {unit} but {first_of_unit[other]} gives {other}; "
+                                "one unit for the whole file")
+        # The user's x or y alone defaults the other to 0, as before positions existed.
+        default = 0.0 if kind == USER_TYPE and unit == "metres" else None
+        values = []
+        for key in keys:
+            value = entity.get(key, default)
+            if value is None:
+                raise ScenarioError(name, f"{where}.{key}", f"missing; {' and '.join(keys)} go together")
+            if not _is_number(value):
+                raise ScenarioError(name, f"{where}.{key}", f"not a finite number: {value!r}")
+            values.append(float(value))
+        if unit == "degrees":
+            try:
+                check_degrees(values[0], values[1])
+            except PositionError as error:
+                raise ScenarioError(name, where, str(error)) from None
+        read[entity["id"]] = (values[0], values[1])
+        if kind == EDGE_SERVER_TYPE:
+            placed_servers.append(where)
+    if placed_servers and unplaced_servers:
+        raise ScenarioError(name, unplaced_servers[0], "has no position while other edge servers have "
+                            "one; place every edge server or none")
+    if "degrees" not in first_of_unit:
+        return None, read
+    origin = Origin(*next(iter(read.values())))
+    return origin, {node: project_m(lat, lon, origin) for node, (lat, lon) in read.items()}
 
 
 def _read_server(name: str, where: str, node: int | str, entity: dict[str, Any], nodes: _Nodes) -> None:
