@@ -43,8 +43,7 @@ def _paper_fields(record: RequestRecord) -> tuple:
 
 
 def test_failures_stream_is_last_and_moves_no_other_draw(uc1):
-    assert PHASE_STREAMS[-1] == "failures" and PHASE_STREAMS[:4] == (
-        "requests", "user_bandwidth", "episodes", "servers")
+    assert PHASE_STREAMS[:5] == ("requests", "user_bandwidth", "episodes", "servers", "failures")
     plain = _world(uc1)
     failing = _world(uc1, failures=FailureSettings.for_unavailability(0.3))
     for item in dataclasses.fields(plain):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,6 +24,9 @@ from yafs_safetail.edge.latency import CopyLatency, copy_latency, copy_latency_s
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase
+
+if TYPE_CHECKING:
+    from yafs_safetail.edge.movement import Movement
 
 # Utilisation as a function of the number of processes k on a server, from the published
 # profiling of one 16 GB, 16-vCPU server (published.py): the server's memory in use grows
@@ -124,6 +128,9 @@ class EdgeWorld:
         timeout_s: how long the user waits for a first reply (``edge.failures.effective_timeout_s``;
             ``inf`` with failures off, so every latency is the paper's).
         energy: the servers' and the user device's power models.
+        movement: where the user sends each request from and what that makes of each link
+            (``edge.movement``); None: the user stays at the topology's position, and
+            ``median_propagation_s`` holds at every step.
     """
 
     seed: int
@@ -157,6 +164,7 @@ class EdgeWorld:
     down_intervals: DownIntervals | None = None
     timeout_s: float = math.inf
     energy: EnergyModel = field(default_factory=EnergyModel)
+    movement: Movement | None = None
 
     @property
     def n_steps(self) -> int:
@@ -235,12 +243,14 @@ class EdgeWorld:
             server_memory_util=_MEMORY_UTIL.take(processes),
             server_cpu_util=_CPU_UTIL.take(processes),
             server_active_users=active,
-            server_median_propagation_s=(self.median_propagation_s if median_propagation_s is None
-                                         else median_propagation_s),
+            server_median_propagation_s=(median_propagation_s if median_propagation_s is not None
+                                         else self.median_propagation_s if self.movement is None
+                                         else self.movement.median_propagation_s[step]),
             input_bytes=float(self.input_bytes[step]),
             est_output_bytes=float(self.est_output_bytes[step]),
             gamma=self.gamma[step],
-            user_location=self._user_location,
+            user_location=(self._user_location if self.movement is None
+                           else self.movement.user_position_m[step]),
             user_uplink_bps=float(self.user_uplink_bps[step]),
             user_downlink_bps=float(self.user_downlink_bps[step]),
             server_max_load=self._max_load_per_server if server_max_load is None else server_max_load,

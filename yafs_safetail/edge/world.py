@@ -36,6 +36,7 @@ from yafs_safetail.edge.latency import (
     target_latency_s,
     transfer_s,
 )
+from yafs_safetail.edge.movement import MobilityPlan, Movement, draw_movement
 from yafs_safetail.edge.phase_world import (
     EdgeWorld,
     HopTables,
@@ -56,7 +57,7 @@ __all__ = [
 #: A phase's independent random streams, in the order they are spawned from the phase's seed
 #: (:func:`phase_streams`). The order decides every draw of every world: never reorder it, and
 #: add a new stream only at the end.
-PHASE_STREAMS: tuple[str, ...] = ("requests", "user_bandwidth", "episodes", "servers", "failures")
+PHASE_STREAMS: tuple[str, ...] = ("requests", "user_bandwidth", "episodes", "servers", "failures", "mobility")
 
 
 def phase_streams(seed: int, phase: str) -> dict[str, np.random.SeedSequence]:
@@ -174,6 +175,7 @@ def build_world(
     failures: FailureSettings | None = None,
     energy: EnergyModel | None = None,
     step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
+    mobility: MobilityPlan | None = None,
 ) -> EdgeWorld:
     """Draws a phase's world.
 
@@ -194,6 +196,9 @@ def build_world(
         energy: the servers' and the device's power models (None: ``EnergyModel()``).
         step_interval_s: time between two requests; the outages are drawn over the phase's
             ``n_steps + 1`` intervals (the last request's copies end within the interval after it).
+        mobility: how the user moves (``edge.movement``; None: the user stays where the
+            topology puts it and every link keeps the topology's condition, as without this
+            argument).
 
     The link BW and PR of the topology act on the trace pools (:func:`link_scales`); the
     fallback latency follows the settings' rule (:func:`_fallback_latency_s`).
@@ -229,6 +234,14 @@ def build_world(
     rtt_s, median_propagation_s = sampling.propagation(
         inputs, scenario.server_conditions, servers.rtt_quantiles,
         scales.server_extra_propagation_s, settings.propagation_rtt_fraction)
+    movement: Movement | None = None
+    step_median_propagation_s = median_propagation_s[None, :]
+    if mobility is not None:
+        # Drawn from its own stream, after the others: every other draw stays as without it.
+        rtt_s, movement = draw_movement(
+            mobility, scenario, inputs, servers.rtt_quantiles, scales.server_extra_propagation_s,
+            settings.propagation_rtt_fraction, step_interval_s, np.random.default_rng(streams["mobility"]))
+        step_median_propagation_s = movement.median_propagation_s
     target_compute_s = target_compute_by_request_s(inputs, requests.gamma, nu, settings.target_compute)
     # The outages are drawn last, from their own stream: a world without failures draws nothing
     # here, and a world with them has exactly the same requests, bandwidths, loads and RTTs.
@@ -266,7 +279,7 @@ def build_world(
         target_compute_s=target_compute_s,
         target_s=np.asarray(target_latency_s(
             requests.input_bytes, requests.est_output_bytes, user_uplink_bps, user_downlink_bps,
-            median_propagation_s[None, :], target_compute_s), dtype=float)
+            step_median_propagation_s, target_compute_s), dtype=float)
         if settings.target_latency_s is None else np.full(n_steps, settings.target_latency_s),
         fallback_latency_s=fallback_latency_s,
         nu=nu,
@@ -275,4 +288,5 @@ def build_world(
         down_intervals=down_intervals,
         timeout_s=effective_timeout_s(failures, worst_s),
         energy=EnergyModel() if energy is None else energy,
+        movement=movement,
     )
