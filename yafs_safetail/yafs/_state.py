@@ -65,6 +65,7 @@ class SimState:
     _complete: Callable[[_Request], None]
     _settle: Callable[[_Lineage], None]
     _lineage_message_done: Callable[[_Lineage], None]
+    _message_lost: Callable[[Message], None]
     _new_message_id: Callable[[], int]
     _id_message: int
     # the direct engine

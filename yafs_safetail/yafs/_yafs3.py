@@ -349,20 +349,13 @@ class YAFS3Engine(SimState):
             from_des=msg.idDES,
         )
         if des_dst == [] and paths == []:
-            self._y_lost(msg)
+            self._message_lost(msg)
             return
         first = paths[0]
         msg.path = first.copy() if type(first) is list else copy.copy(first)
         msg.idDES = des_dst[0]
         self._net_items.append(msg)
         heappush(self._queue, (self.env._now, NORMAL, next(self._eid), self._net_put_event))
-
-    def _y_lost(self, msg: Message) -> None:
-        self.lost_messages += 1
-        lineage = msg._lineage
-        if lineage is not None:
-            lineage.lost = True
-            self._lineage_message_done(lineage)
 
     # ----------------------------------------------------------------- modules and sinks
 
@@ -417,7 +410,7 @@ class YAFS3Engine(SimState):
         else:
             if msg.name not in proc.by_name:
                 # No transmission consumes it: YAFS's loop goes straight back to its pipe.
-                self._y_lost(msg)
+                self._message_lost(msg)
                 self._y_proc_next(proc)
                 return
             if not self._y_inline_service:

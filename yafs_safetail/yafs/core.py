@@ -273,6 +273,14 @@ class Sim(YAFS3Engine, DirectEngine):
             lineage.time_end = self.env._now
             self._settle(lineage)
 
+    def _message_lost(self, msg: Message) -> None:
+        """``msg`` goes no further (no route, or no process to take it), in either engine."""
+        self.lost_messages += 1
+        lineage = msg._lineage
+        if lineage is not None:
+            lineage.lost = True
+            self._lineage_message_done(lineage)
+
     def _settle(self, lineage: _Lineage) -> None:
         request = lineage.request
         request.unsettled -= 1
