@@ -1,5 +1,7 @@
 """The project's commands, one module each with ``main(argv)``: what ``yafs-safetail <command>``
-runs (``yafs_safetail.cli``), and what ``experiments/<module>.py`` runs in the checkout.
+runs (``yafs_safetail.cli``), and what ``experiments/<module>.py`` runs in the checkout
+(``figures``, which only reads a results folder, runs as ``python -m
+yafs_safetail.commands.figures`` instead).
 
 Each module reads top to bottom: its options, their checks, then the work. Only light modules
 (the standard library, ``cli``, ``defaults``, ``runs.config``) are imported before the arguments
