@@ -280,8 +280,8 @@ def run_script(main: Callable[[Sequence[str] | None], int | None]) -> NoReturn:
 
 #: ``yafs-safetail <command>``: the module under yafs_safetail/commands/ that runs it (each has
 #: ``main(argv)``) and what it does. ``experiments/<module>.py`` in the checkout is the same
-#: command for those that run experiments; figures, which only reads a results folder, runs as
-#: ``python -m yafs_safetail.commands.figures`` too.
+#: command for those that run experiments; the two that only read results folders run as
+#: ``python -m yafs_safetail.commands.<module>`` too.
 SCRIPT_COMMANDS = {
     "run": ("run_usecase", "train SafeTail and compare it on one use case"),
     "reproduce": ("reproduce_all", "every use case over several seeds, one report"),
@@ -293,6 +293,7 @@ SCRIPT_COMMANDS = {
     "mechanism": ("training_mechanism", "many users: each SafeTail's copies and queues over its training"),
     "failure-sweep": ("failure_sweep", "servers that fail: success, p99 and energy per request"),
     "figures": ("figures", "redraw a results folder's figures"),
+    "feasibility": ("feasibility", "what any policy could reach in the worlds of run folders"),
 }
 USAGE = "usage: yafs-safetail {" + ",".join(SCRIPT_COMMANDS) + "} [options]   (each takes --help)"
 
