@@ -91,14 +91,14 @@ def test_scripts_run_directly_keep_their_own_name(capsys: pytest.CaptureFixture[
     import sys
 
     from yafs_safetail.cli import main
-    from yafs_safetail.figures import main as figures_main
+    from yafs_safetail.commands.figures import main as figures_main
 
     with pytest.raises(SystemExit):
         main(["run", "--help"])  # the console command's name must not stay behind it
     capsys.readouterr()
     with pytest.raises(SystemExit):
         figures_main(["--help"])
-    assert capsys.readouterr().out.startswith("usage: python -m yafs_safetail.figures ")
+    assert capsys.readouterr().out.startswith("usage: python -m yafs_safetail.commands.figures ")
     script = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "load_sweep.py"), "--help"],
                             capture_output=True, text=True, timeout=300)
     assert script.returncode == 0 and script.stdout.startswith("usage: load_sweep.py "), script.stderr

@@ -217,7 +217,8 @@ def test_p99_against_energy_figure_plots_each_method_at_its_summary_point():
     import pandas as pd
     from test_results import make_requests, make_run
 
-    from yafs_safetail import figures, results
+    from yafs_safetail import results
+    from yafs_safetail.results.figures import run_figures as figures
 
     requests = make_requests(np.random.default_rng(5), n_train=20, n_test=30)
     rng = np.random.default_rng(6)

@@ -1,4 +1,5 @@
-"""Tests for yafs_safetail.figures: files drawn from a results folder, and the CLI on bad input."""
+"""One run's figures (yafs_safetail.results.figures.run_figures): files drawn from a results
+folder, and its command (commands/figures.py) on bad input."""
 
 from __future__ import annotations
 
@@ -11,14 +12,17 @@ import numpy as np
 import pytest
 from test_results import make_requests, make_run, write_run_folder
 
-from yafs_safetail import figures, results
+from yafs_safetail import results
+from yafs_safetail.commands import figures as figures_command
+from yafs_safetail.defaults import FIGURE_FORMATS
+from yafs_safetail.results.figures import run_figures as figures
 
 FIGURE_FILES = sorted(f"{stem}.{fmt}" for stem in figures.FIGURE_STEMS.values()
-                      for fmt in figures.FIGURE_FORMATS)
+                      for fmt in FIGURE_FORMATS)
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "yafs_safetail.figures", *args],
+    return subprocess.run([sys.executable, "-m", "yafs_safetail.commands.figures", *args],
                           capture_output=True, text=True, timeout=120, check=False)
 
 
@@ -26,7 +30,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
 def drawn_folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("run")
     write_run_folder(folder, np.random.default_rng(21))
-    written = figures.draw_figures(folder, formats=figures.FIGURE_FORMATS)
+    written = figures.draw_figures(folder, formats=FIGURE_FORMATS)
     return folder, written
 
 
@@ -43,7 +47,7 @@ def test_every_panel_written_as_png_and_pdf(drawn_folder):
 def test_figures_are_deterministic(drawn_folder):
     folder, written = drawn_folder
     before = {p.name: p.read_bytes() for p in written}
-    again = figures.draw_figures(folder, formats=figures.FIGURE_FORMATS)
+    again = figures.draw_figures(folder, formats=FIGURE_FORMATS)
     assert {p.name: p.read_bytes() for p in again} == before
 
 
@@ -119,7 +123,7 @@ def test_cli_redraws(drawn_folder):
 
 def test_quiet_prints_only_the_figures_folder(drawn_folder, capsys):
     folder, _ = drawn_folder
-    assert figures.main([str(folder), "--quiet"]) == 0
+    assert figures_command.main([str(folder), "--quiet"]) == 0
     assert capsys.readouterr().out == f"{folder / figures.FIGURES_DIR}\n"
 
 

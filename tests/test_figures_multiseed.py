@@ -1,5 +1,5 @@
-"""Figures across seeds with 95% bands (yafs_safetail/figures_multiseed.py): the data behind
-each band, the bands actually drawn, the files."""
+"""Figures across seeds with 95% bands (yafs_safetail/results/figures/multiseed.py): the data
+behind each band, the bands actually drawn, the files."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from results_helpers import N_SERVERS, make_run, write_run_folder, write_seed_folders
 
-from yafs_safetail import figures_multiseed as fm
 from yafs_safetail import results
 from yafs_safetail.results import ResultsFileError
+from yafs_safetail.results.figures import multiseed as fm
 
 N_SEEDS = 4
 BETA = 20  # results_helpers.make_run

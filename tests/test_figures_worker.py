@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from results_helpers import make_requests, make_run
 
-from yafs_safetail import figures
+from yafs_safetail.results.figures import run_figures as figures
 from yafs_safetail.runs.figures_worker import FiguresWorker, start_figures_worker
 from yafs_safetail.runs.workers import WorkerDied
 

@@ -36,8 +36,10 @@ CASES = {
     "script --preset bogus": ([RUN_SCRIPT, "--uc", "1", "--preset", "bogus"], 2),
     "listing": (["yafs-safetail", "--help"], 0),
     **{f"{command} --help": (["yafs-safetail", command, "--help"], 0)
-       for command in ("reproduce", "campaign", "calibrate", "compare")},
+       for command in ("reproduce", "campaign", "calibrate", "compare", "figures", "feasibility")},
     "reproduce --uc 9": (["yafs-safetail", "reproduce", "--uc", "9"], 2),
+    "figures --figure-format svg": (["yafs-safetail", "figures", "unused", "--figure-format", "svg"], 2),
+    "feasibility without a folder": (["yafs-safetail", "feasibility"], 2),
     "learning rate --help": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--help"], 0),
     "learning rate --uc 7": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--uc", "7"], 2),
     # The sweeps' options come from contention.sweep_config, so these guard its imports too.
@@ -89,5 +91,4 @@ def test_version_answers_with_the_package_version_and_loads_nothing_heavy(case):
                           text=True, cwd=REPOSITORY, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout == f"yafs-safetail {__version__}\n"
-    if case != "figures":  # the figures module imports matplotlib at its top, --help or not
-        assert done.stderr.splitlines() == ["loaded: []"], done.stderr[-2000:]
+    assert done.stderr.splitlines() == ["loaded: []"], done.stderr[-2000:]

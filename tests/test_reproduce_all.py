@@ -247,7 +247,7 @@ def test_a_run_without_its_fallback_latency_is_one_line_naming_the_file(uncut: P
 
 
 def test_the_check_on_any_run_folders_from_the_command_line(uncut: Path, tmp_path: Path) -> None:
-    command = [sys.executable, "-m", "yafs_safetail.results.feasibility"]
+    command = [sys.executable, "-m", "yafs_safetail.commands.feasibility"]
     folders = [str(uncut / "uc1-paper" / f"seed{seed}") for seed in (0, 1)]
     done = subprocess.run([*command, *folders], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]

@@ -20,9 +20,9 @@ import pytest
 from in_process import run_usecase_here as run_here
 
 from yafs_safetail import results
+from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.edge.calibration import world_settings
-from yafs_safetail.figures import (
-    DEFAULT_FIGURE_FORMATS,
+from yafs_safetail.results.figures.run_figures import (
     FIGURE_STEMS,
     FIGURES_DIR,
     build_figures,

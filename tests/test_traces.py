@@ -118,6 +118,16 @@ def test_another_uc3_scale_changes_only_the_uc3_trace(tmp_path):
     assert abs(one_process.mean() - 0.5) < 0.01
 
 
+@pytest.mark.parametrize("argv", [["--uc3-mean-latency-s", "-1"], ["--seed", "x"]])
+def test_the_generator_refuses_bad_input_in_one_line_writing_nothing(tmp_path, capsys, argv):
+    from yafs_safetail.cli import EXIT_BAD_INPUT, run_cli
+
+    assert run_cli(generate.main, ["--out", str(tmp_path / "out"), *argv]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
+    assert not (tmp_path / "out").exists()
+
+
 def test_generated_csvs_are_small():
     total = sum((DEFAULT_TRACE_DIR / name).stat().st_size for name in CSV_NAMES)
     assert total < 3_000_000

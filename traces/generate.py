@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from yafs_safetail.cli import ArgumentParser, run_cli
 from yafs_safetail.edge import published as pub
 
 DEFAULT_SEED = 2024
@@ -384,7 +385,8 @@ def write_csvs(seed: int, out_dir: Path, uc3_mean_latency_s: float | None = None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    # cli's parser and run_cli, as every command's: bad input is one line and exit 2.
+    parser = ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=DEFAULT_SEED)
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent)
     parser.add_argument("--no-models", action="store_true", help="write the CSVs only (no TensorFlow)")
@@ -412,4 +414,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main))

@@ -226,13 +226,14 @@ def paper_figures(results: RunResults | str | os.PathLike[str],
                   panels: str = PAPER_PANELS) -> dict[str, Figure]:
     """The paper's panels (a)-(g) of one run (Fig. 5 for use case 1), in memory.
 
-    The same figures the run writes under ``figures/`` (``yafs_safetail.figures``), not written
-    anywhere: a notebook shows each one as the value of a cell, ``figure.savefig(path)`` writes it.
+    The same figures the run writes under ``figures/``
+    (``yafs_safetail.results.figures.run_figures``), not written anywhere: a notebook shows each
+    one as the value of a cell, ``figure.savefig(path)`` writes it.
 
     Args:
         results: a :class:`RunResults` or a results folder.
         panels: which of ``"abcdefg"``, in the order wanted (the run's p99-against-energy
-            figure is ``yafs_safetail.figures.build_figures(...)["energy"]``).
+            figure is ``yafs_safetail.results.figures.run_figures.build_figures(...)["energy"]``).
 
     Returns:
         Panel letter to its matplotlib Figure, in the order asked.
@@ -243,7 +244,7 @@ def paper_figures(results: RunResults | str | os.PathLike[str],
     bad = [p for p in panels if p not in PAPER_PANELS]
     if bad or not panels:
         raise ApiError(f"paper_figures(): panels {panels!r}: expected letters of {PAPER_PANELS!r}")
-    from yafs_safetail.figures import build_figures
+    from yafs_safetail.results.figures.run_figures import build_figures
 
     loaded = _as_results(results)
     built = build_figures(loaded.requests, loaded.run)

@@ -279,8 +279,9 @@ def run_script(main: Callable[[Sequence[str] | None], int | None]) -> NoReturn:
 
 
 #: ``yafs-safetail <command>``: the module under yafs_safetail/commands/ that runs it (each has
-#: ``main(argv)``; ``experiments/<module>.py`` in the checkout is the same command) and what it
-#: does. The figures module is the one command outside that package.
+#: ``main(argv)``) and what it does. ``experiments/<module>.py`` in the checkout is the same
+#: command for those that run experiments; the two that only read results folders run as
+#: ``python -m yafs_safetail.commands.<module>`` too.
 SCRIPT_COMMANDS = {
     "run": ("run_usecase", "train SafeTail and compare it on one use case"),
     "reproduce": ("reproduce_all", "every use case over several seeds, one report"),
@@ -291,9 +292,10 @@ SCRIPT_COMMANDS = {
     "sweep": ("load_sweep", "many users: every method against the offered load"),
     "mechanism": ("training_mechanism", "many users: each SafeTail's copies and queues over its training"),
     "failure-sweep": ("failure_sweep", "servers that fail: success, p99 and energy per request"),
+    "figures": ("figures", "redraw a results folder's figures"),
+    "feasibility": ("feasibility", "what any policy could reach in the worlds of run folders"),
 }
-USAGE = ("usage: yafs-safetail {" + ",".join([*SCRIPT_COMMANDS, "figures"])
-         + "} [options]   (each takes --help)")
+USAGE = "usage: yafs-safetail {" + ",".join(SCRIPT_COMMANDS) + "} [options]   (each takes --help)"
 
 
 def invocation(script: str) -> list[str]:
@@ -316,7 +318,6 @@ def _listing() -> str:
     lines = [USAGE, f"  {'--version':<14} print the package's version ({__version__})"]
     # No script paths: an installed (wheel) user has no experiments/ folder.
     lines += [f"  {name:<14} {what}" for name, (module, what) in SCRIPT_COMMANDS.items()]
-    lines.append(f"  {'figures':<14} redraw a results folder's figures (python -m yafs_safetail.figures)")
     return "\n".join(lines) + "\n"
 
 
@@ -344,16 +345,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(_listing() + "error: no command given; each command takes --help", file=sys.stderr)
         return EXIT_BAD_INPUT
     command, rest = args[0], args[1:]
-    if command != "figures" and command not in SCRIPT_COMMANDS:
+    if command not in SCRIPT_COMMANDS:
         print(f"error: unknown command {command!r}; {USAGE}", file=sys.stderr)
         return EXIT_BAD_INPUT
     # Every parser the command builds shows "yafs-safetail COMMAND" as its prog (ArgumentParser).
     token = _command_prog.set(f"yafs-safetail {command}")
     try:
-        if command == "figures":
-            from yafs_safetail.figures import main as figures_main
-
-            return run_cli(figures_main, rest)
         return run_cli(_command_main(SCRIPT_COMMANDS[command][0]), rest)
     finally:
         _command_prog.reset(token)

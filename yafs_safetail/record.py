@@ -10,7 +10,7 @@ method's policy sees it as its feedback (``methods.Policy.feedback``), and
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -128,35 +128,31 @@ class RequestRecord:
         return self.target_s - self.latency_s
 
 
+#: How a ``requests.csv`` column is made from a record where it is not the record's attribute of
+#: that name (a field or a property): the servers' text and the fallback as 0/1.
+_COLUMN_VALUES: dict[str, Callable[[RequestRecord], Any]] = {
+    "servers": lambda r: SERVERS_SEPARATOR.join(map(str, r.servers)),
+    "fallback": lambda r: int(r.fallback),
+}
+#: The columns :func:`records_frame` writes, in file order: the contract's, then ``epsilon``,
+#: then the outcome and energy columns.
+RECORD_COLUMNS: tuple[str, ...] = (*REQUESTS_COLUMNS, "epsilon", *OUTCOME_ENERGY_COLUMNS)
+
+
 def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: int) -> pd.DataFrame:
-    """The ``requests.csv`` rows of one method and phase (contract columns, then ``epsilon``,
-    then :data:`OUTCOME_ENERGY_COLUMNS`)."""
-    return pd.DataFrame(
-        {
-            "method": [r.method for r in records],
-            "phase": phase,
-            "episode": [r.step // episode_steps for r in records],
-            "step": [r.step for r in records],
-            "request_id": [r.request_id for r in records],
-            "latency_s": [r.latency_s for r in records],
-            "target_s": [r.target_s for r in records],
-            "deviation_s": [r.deviation_s for r in records],
-            "n_selected": [r.n_selected for r in records],
-            "access_rate": [r.access_rate for r in records],
-            "servers": [SERVERS_SEPARATOR.join(map(str, r.servers)) for r in records],
-            "reward": [r.reward for r in records],
-            "refused": [r.refused for r in records],
-            "fallback": [int(r.fallback) for r in records],
-            "upload_s": [r.upload_s for r in records],
-            "propagation_s": [r.propagation_s for r in records],
-            "download_s": [r.download_s for r in records],
-            "compute_s": [r.compute_s for r in records],
-            "epsilon": [r.epsilon for r in records],
-            "end_reason": [r.end_reason for r in records],
-            "lost": [r.lost for r in records],
-            "energy_j": [r.energy_j for r in records],
-            "server_energy_j": [r.server_energy_j for r in records],
-            "radio_energy_j": [r.radio_energy_j for r in records],
-            "saved_energy_j": [r.saved_energy_j for r in records],
-        }
-    )
+    """The ``requests.csv`` rows of one method and phase (:data:`RECORD_COLUMNS`).
+
+    Every column but ``phase`` and ``episode`` (which the records do not hold) is the record's
+    attribute of that name, or its :data:`_COLUMN_VALUES` entry.
+    """
+    columns: dict[str, Any] = {}
+    for name in RECORD_COLUMNS:
+        if name == "phase":
+            columns[name] = phase
+        elif name == "episode":
+            columns[name] = [r.step // episode_steps for r in records]
+        elif name in _COLUMN_VALUES:
+            columns[name] = [_COLUMN_VALUES[name](r) for r in records]
+        else:
+            columns[name] = [getattr(r, name) for r in records]
+    return pd.DataFrame(columns)

@@ -5,8 +5,8 @@ percentile into intervals on SafeTail's latency there (its docstring says how ea
 reads); this module gathers the runs of one preset over use cases and seeds: ``feasibility.csv``
 (:func:`check_all`), the verdict per use case and percentile (:func:`by_percentile`), the most
 any policy could reproduce (:class:`Ceiling`), and REPORT.md's section
-(:func:`feasibility_markdown`). ``python -m yafs_safetail.results.feasibility DIR ...`` prints
-them for run folders.
+(:func:`feasibility_markdown`). ``yafs-safetail feasibility DIR ...`` prints them for run
+folders.
 
 The names of ``world_bounds`` are also importable from here (the reports and tests read them as
 ``feasibility.check``, ``feasibility.bounds``...).
@@ -52,7 +52,7 @@ __all__ = [
     "unbounded_claims",
     # Over the runs of a preset.
     "FEASIBILITY_FILE", "FEASIBILITY_NOTE", "Ceiling", "by_percentile", "ceiling", "ceiling_line",
-    "check_all", "feasibility_display", "feasibility_markdown", "main", "reachable_count",
+    "check_all", "feasibility_display", "feasibility_markdown", "reachable_count",
 ]
 
 FEASIBILITY_FILE = "feasibility.csv"
@@ -207,32 +207,3 @@ def feasibility_markdown(checked: pd.DataFrame) -> str:
                   f"{', '.join(unbounded)}.", ""]
     lines += frame_markdown(feasibility_display(checked))
     return "\n".join(lines) + "\n"
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m yafs_safetail.results.feasibility DIR [DIR ...]``: print the check."""
-    import argparse
-
-    parser = argparse.ArgumentParser(
-        prog="python -m yafs_safetail.results.feasibility",
-        description="What any policy could reach in the worlds of these run folders (from "
-                    "run_usecase.py or reproduce_all.py; one or more use cases, the same seeds "
-                    "for each): which of the paper's statements can hold together at each "
-                    "percentile, read from Oracle's and the baselines' latencies and the "
-                    "targets alone.",
-    )
-    parser.add_argument("directories", metavar="DIR", nargs="+", help="results folders of runs")
-    args = parser.parse_args(argv)
-    worlds = [read_world_run(folder) for folder in args.directories]
-    print(ceiling_line(worlds))
-    print()
-    print(feasibility_markdown(check_all(worlds)), end="")
-    return 0
-
-
-if __name__ == "__main__":
-    import sys
-
-    from yafs_safetail.cli import run_cli
-
-    sys.exit(run_cli(main))

@@ -21,13 +21,13 @@ import pandas as pd
 from yafs_safetail import results
 from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.edge.calibration import CalibrationError, read_calibration, seed_set
-from yafs_safetail.figures import FIGURE_STEMS, FIGURES_DIR
-from yafs_safetail.figures_multiseed import (
+from yafs_safetail.results import feasibility, fidelity, latex, seed_tables
+from yafs_safetail.results.figures.multiseed import (
     LATENCY_BANDS_STEM,
     SERVERS_BANDS_STEM,
     draw_multiseed_figures,
 )
-from yafs_safetail.results import feasibility, fidelity, latex, seed_tables
+from yafs_safetail.results.figures.run_figures import FIGURE_STEMS, FIGURES_DIR
 from yafs_safetail.results.over_seeds import metrics_over_seeds, speedups_over_seeds
 from yafs_safetail.results.report import reading_line
 
@@ -38,7 +38,7 @@ SPEEDUPS_FILE = "speedups.csv"
 #: The users' own policies (``--method``): their latency and speed-ups over seeds, one row per
 #: use case, preset, method and quantity (written only when there are such policies).
 METHODS_FILE = "methods.csv"
-#: The first seed's figures REPORT.md shows, by panel (figures.FIGURE_STEMS names their files).
+#: The first seed's figures REPORT.md shows, by panel (run_figures.FIGURE_STEMS names their files).
 FIGURE_CAPTIONS = {
     "a": "latency comparison with target and baselines",
     "b": "SafeTail vs Rand-x",
@@ -341,7 +341,7 @@ def write_report(out: Path, use_cases: Sequence[int], presets: Sequence[str], se
         seeds: the seeds every (use case, preset) ran.
         command: the command line that made the runs (the report cites it).
         learning_rate: the learning rate every run used instead of its preset's, if any.
-        figure_formats: the formats of the report's figures (figures.FIGURE_FORMATS).
+        figure_formats: the formats of the report's figures (defaults.FIGURE_FORMATS).
 
     Returns:
         The path of REPORT.md.

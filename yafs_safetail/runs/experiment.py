@@ -304,7 +304,7 @@ def _learn_write_draw(staging: Path, config: ExperimentConfig, inputs: _Inputs, 
             if figures_worker is not None:
                 figures_worker.wait()
             else:
-                from yafs_safetail.figures import draw_figures
+                from yafs_safetail.results.figures.run_figures import draw_figures
 
                 draw_figures(staging, requests, run, formats=config.figure_formats)
         # With a figures process, from handing it the rows: the drawing overlaps the writing.

@@ -3,8 +3,8 @@
 Drawing the figures (matplotlib's import included) and writing the results files each take a
 few seconds at the end of a run; neither needs the other, so they run side by side. The process
 imports the figure module at once and then waits, so its import overlaps TensorFlow's and the
-simulations instead of the run's end. It draws exactly what :func:`~yafs_safetail.figures.
-draw_figures` draws in the main process (the same code on the same rows), and it never touches
+simulations instead of the run's end. It draws exactly what :func:`~yafs_safetail.results.
+figures.run_figures.draw_figures` draws in the main process (the same code on the same rows), and it never touches
 TensorFlow: it is forked before TensorFlow is imported, as the baseline workers are.
 """
 
@@ -30,14 +30,14 @@ log = logging.getLogger(__name__)
 def _figures_main(channel: Connection) -> None:
     become_worker()
     with contextlib.suppress(Exception):  # the import this process is here to pay, while the run computes
-        import yafs_safetail.figures  # noqa: F401
+        import yafs_safetail.results.figures.run_figures  # noqa: F401
     try:
         folder, requests, run, formats = channel.recv()
     except EOFError:  # the parent is gone (it never closes the pipe first): nothing to draw
         return
 
     def draw() -> list[Path]:
-        from yafs_safetail.figures import draw_figures
+        from yafs_safetail.results.figures.run_figures import draw_figures
 
         return draw_figures(folder, requests, run, formats=formats)
 

@@ -171,19 +171,12 @@ class DirectEngine(SimState):
         if not new_path or src not in new_path or (
             new_path.index(src) + 1 < len(new_path) and new_path[new_path.index(src) + 1] == dst
         ):
-            self._drop(msg)
+            self._message_lost(msg)
             return
         msg.path = new_path
         msg.idDES = des_list[0]
         msg._hop = new_path.index(src)
         self._forward(msg)
-
-    def _drop(self, msg: Message) -> None:
-        self.lost_messages += 1
-        lineage = msg._lineage
-        if lineage is not None:
-            lineage.lost = True
-            self._lineage_message_done(lineage)
 
     # ----------------------------------------------------------------- modules and sinks
 
@@ -193,7 +186,7 @@ class DirectEngine(SimState):
         msg.timestamp_rec = now
         replica = self._replicas.get(msg.idDES)
         if replica is None or not self.des_process_running.get(replica.des, False):
-            self._drop(msg)
+            self._message_lost(msg)
             return
         if replica.is_sink:
             self._record(replica, msg, self.SINK_METRIC, 0, now)
@@ -207,7 +200,7 @@ class DirectEngine(SimState):
             return
         if msg.name not in replica.outputs:
             # YAFS: a replica ignores messages none of its transmissions consume.
-            self._drop(msg)
+            self._message_lost(msg)
             return
         node = self.alloc_DES[replica.des]
         if not self._admit(self, msg, replica.des, node, replica.module):

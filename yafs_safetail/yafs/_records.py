@@ -190,6 +190,22 @@ class _Inline:
         self.fn(self.event)
 
 
+class _FloatTexts(dict[float, str]):
+    """The text of each float written to the yafs3 engine's rows since the last flush.
+
+    A link's latency and a service time recur on every hop and copy, and writing a float is
+    the costliest part of a row, so its text is made once, here, on the first miss. The
+    engine reads it inline (``texts[value]``): a subscript that hits stays in C, where a
+    helper method would add a Python call to every row.
+    """
+
+    __slots__ = ()
+
+    def __missing__(self, value: float) -> str:
+        text = self[value] = repr(value)
+        return text
+
+
 class _StopRun(Exception):
     """Raised by the ``until`` event to leave the event loop (simpy's StopSimulation)."""
 

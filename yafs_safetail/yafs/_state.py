@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     import numpy as np
     import simpy
 
-    from yafs_safetail.yafs._records import _Lineage, _NetPut, _Request
+    from yafs_safetail.yafs._records import _FloatTexts, _Lineage, _NetPut, _Request
     from yafs_safetail.yafs.application import Application, Message
     from yafs_safetail.yafs.metrics import Metrics
     from yafs_safetail.yafs.topology import Topology
@@ -50,7 +50,7 @@ class SimState:
     # Any: None when results are not written; the engines test one of the two, then use both
     _event_rows: Any
     _link_rows: Any
-    _float_texts: dict[float, str]
+    _float_texts: _FloatTexts
     _flush_rows: int  # rows buffered before a flush
     # the delay and service hooks, bound once
     _hop_delay: Callable[..., float]
@@ -65,6 +65,7 @@ class SimState:
     _complete: Callable[[_Request], None]
     _settle: Callable[[_Lineage], None]
     _lineage_message_done: Callable[[_Lineage], None]
+    _message_lost: Callable[[Message], None]
     _new_message_id: Callable[[], int]
     _id_message: int
     # the direct engine

@@ -258,14 +258,9 @@ class YAFS3Engine(SimState):
                 latency = self._hop_delay(self, msg, src, dst)
             rows = self._link_rows
             if rows is not None:
-                # A link's latency recurs on every hop over it: its text is made once
-                # (writing a float is the costliest part of a row).
-                if latency.__class__ is float and latency:
-                    text = self._float_texts.get(latency)
-                    if text is None:
-                        text = self._float_texts[latency] = repr(latency)
-                else:
-                    text = latency
+                # A link's latency recurs on every hop over it: its text is made once.
+                text = (self._float_texts[latency] if latency.__class__ is float and latency
+                        else latency)
                 start: Any = now  # a number, or its text when it is written again below
                 if first_hop and now.__class__ is float and now and now == msg.timestamp:
                     # The emission time: written again as the message's time_emit.
@@ -354,20 +349,13 @@ class YAFS3Engine(SimState):
             from_des=msg.idDES,
         )
         if des_dst == [] and paths == []:
-            self._y_lost(msg)
+            self._message_lost(msg)
             return
         first = paths[0]
         msg.path = first.copy() if type(first) is list else copy.copy(first)
         msg.idDES = des_dst[0]
         self._net_items.append(msg)
         heappush(self._queue, (self.env._now, NORMAL, next(self._eid), self._net_put_event))
-
-    def _y_lost(self, msg: Message) -> None:
-        self.lost_messages += 1
-        lineage = msg._lineage
-        if lineage is not None:
-            lineage.lost = True
-            self._lineage_message_done(lineage)
 
     # ----------------------------------------------------------------- modules and sinks
 
@@ -422,7 +410,7 @@ class YAFS3Engine(SimState):
         else:
             if msg.name not in proc.by_name:
                 # No transmission consumes it: YAFS's loop goes straight back to its pipe.
-                self._y_lost(msg)
+                self._message_lost(msg)
                 self._y_proc_next(proc)
                 return
             if not self._y_inline_service:
@@ -494,12 +482,8 @@ class YAFS3Engine(SimState):
             if rows is not None:
                 # Texts made once: a service time (it recurs), and the arrival time when it
                 # is also the start time (no wait in the pipe).
-                if service.__class__ is float and service:
-                    service_text = self._float_texts.get(service)
-                    if service_text is None:
-                        service_text = self._float_texts[service] = repr(service)
-                else:
-                    service_text = service
+                service_text = (self._float_texts[service] if service.__class__ is float and service
+                                else service)
                 reception: Any = float(msg.timestamp_rec)  # a number, or its text
                 start: Any
                 if reception == now and now.__class__ is float and now:

@@ -29,7 +29,15 @@ import simpy
 from simpy.events import NORMAL, URGENT
 
 from yafs_safetail.yafs._direct import DirectEngine
-from yafs_safetail.yafs._records import _Inline, _Lineage, _NetPut, _Request, _StopRun, _Until
+from yafs_safetail.yafs._records import (
+    _FloatTexts,
+    _Inline,
+    _Lineage,
+    _NetPut,
+    _Request,
+    _StopRun,
+    _Until,
+)
 from yafs_safetail.yafs._yafs3 import YAFS3Engine
 from yafs_safetail.yafs.application import Application, Message
 from yafs_safetail.yafs.distribution import Distribution, deterministic_distribution
@@ -183,7 +191,7 @@ class Sim(YAFS3Engine, DirectEngine):
         self._net_put_event = _NetPut(self._y_net_put_cbs)
         self._track_by_app: dict[Any, bool] = {}
         # Text of the float values written since the last flush (the yafs3 engine's rows).
-        self._float_texts: dict[float, str] = {}
+        self._float_texts = _FloatTexts()
         self._flush_rows = self.metrics.buffer_rows
         # The event to process next, bypassing the queue (False: only while run's loop runs).
         self._inline_fn: Any = False
@@ -264,6 +272,14 @@ class Sim(YAFS3Engine, DirectEngine):
                 lineage.status = "consumed"
             lineage.time_end = self.env._now
             self._settle(lineage)
+
+    def _message_lost(self, msg: Message) -> None:
+        """``msg`` goes no further (no route, or no process to take it), in either engine."""
+        self.lost_messages += 1
+        lineage = msg._lineage
+        if lineage is not None:
+            lineage.lost = True
+            self._lineage_message_done(lineage)
 
     def _settle(self, lineage: _Lineage) -> None:
         request = lineage.request

@@ -1,11 +1,8 @@
 """The paper's Figs. 5-7, panels (a)-(g), drawn from a results folder alone.
 
-Usage::
-
-    python -m yafs_safetail.figures RESULTS_DIR
-
-reads ``requests.csv`` and ``run.json`` (see ``docs/results.md``) and writes, into
-``RESULTS_DIR/figures/``, one PNG and one PDF per panel:
+:func:`draw_figures` (``yafs-safetail figures RESULTS_DIR`` runs it) reads ``requests.csv`` and
+``run.json`` (see ``docs/results.md``) and writes, into ``RESULTS_DIR/figures/``, one file per
+panel in each format asked (PNG by default, PDF too):
 
 * (a) ``fig_a_latency_comparison``: median/p90/p95/p99 of SafeTail, Oracle and the x = 1
   baselines, with the average target latency marked;
@@ -25,11 +22,8 @@ deleted figure behind.
 from __future__ import annotations
 
 import os
-import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 import numpy as np
@@ -40,17 +34,15 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
 from yafs_safetail import results
-from yafs_safetail.cli import (
-    ArgumentParser,
-    add_verbosity_options,
-    configure_verbosity,
-    print_result,
-    run_cli,
-)
-from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS as DEFAULT_FIGURE_FORMATS  # (re-exported)
-from yafs_safetail.defaults import FIGURE_FORMATS as FIGURE_FORMATS  # (re-exported)
-from yafs_safetail.defaults import figure_formats
+from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.results import ResultsFileError, RunMetadata
+from yafs_safetail.results.figures.style import (
+    PHASE_COLOURS,
+    STYLE,
+    colour,
+    own_methods,
+    save_figure,
+)
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 
 FIGURES_DIR = "figures"
@@ -67,47 +59,7 @@ FIGURE_STEMS: dict[str, str] = {
     # Beyond the paper: every method's whole test-phase latency distribution, not four points of it.
     "cdf": "latency_cdf",
 }
-PNG_DPI = 150
-
-_STYLE: dict[Any, Any] = {  # matplotlib types its keys as literals
-    "font.size": 8.5,
-    "axes.titlesize": 9,
-    "axes.grid": True,
-    "axes.axisbelow": True,
-    "grid.alpha": 0.3,
-    "legend.fontsize": 7.5,
-    "legend.frameon": False,
-    "axes.spines.top": False,
-    "axes.spines.right": False,
-}
 _FIGSIZE_IN = (5.2, 3.5)
-_FAMILY_COLOURS = {
-    results.SAFETAIL: ("#1f5fa8",),
-    results.ORACLE: ("#333333",),
-    "Rand": ("#f2a65a", "#e07b24", "#a8520f"),
-    "MinLoad": ("#8fd18a", "#4ca64a", "#23722a"),
-    "MinProp": ("#f08a8a", "#d64545", "#962020"),
-}
-_PHASE_COLOURS = {"train": "#1f5fa8", "test": "#d64545"}
-
-
-#: Users' own methods (``--method``), in report order.
-_OWN_COLOURS = ("#7b4fa0", "#17a2a2", "#8c6d31", "#c44e97", "#7f7f7f")
-
-
-def _own_methods(present: Sequence[str]) -> list[str]:
-    """The methods that are neither SafeTail, Oracle nor a baseline (users' policies)."""
-    built_in = {results.SAFETAIL, results.ORACLE, *results.baselines_of(present)}
-    return [m for m in results.sort_methods(present) if m not in built_in]
-
-
-def _colour(method: str, own: Sequence[str] = ()) -> str:
-    if method in own:
-        return _OWN_COLOURS[min(list(own).index(method), len(_OWN_COLOURS) - 1)]
-    family, level = results.parse_method(method)
-    shades = _FAMILY_COLOURS.get(family, ("#7f7f7f",))
-    index = 0 if level is None else min(level - 1, len(shades) - 1)
-    return shades[index]
 
 
 def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
@@ -127,37 +79,16 @@ def _new_figure(run: RunMetadata, title: str) -> tuple[Figure, Axes]:
     return figure, axes
 
 
-def _save(figure: Figure, folder: Path, stem: str,
-          formats: Sequence[str] = DEFAULT_FIGURE_FORMATS) -> list[Path]:
-    written = []
-    for fmt in formats:
-        dest = folder / f"{stem}.{fmt}"
-        handle, tmp_name = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp.{fmt}", dir=folder)
-        os.close(handle)
-        try:
-            # No creation date in the PDF: the same data gives the same bytes.
-            metadata = {"CreationDate": None} if fmt == "pdf" else None
-            figure.savefig(tmp_name, format=fmt, dpi=PNG_DPI, metadata=metadata)
-            os.chmod(tmp_name, results.file_mode())
-            os.replace(tmp_name, dest)
-        except BaseException:
-            if os.path.exists(tmp_name):
-                os.unlink(tmp_name)
-            raise
-        written.append(dest)
-    return written
-
-
 def _percentile_bars(axes: Axes, summary: pd.DataFrame, methods: Sequence[str]) -> None:
     n_methods = max(len(methods), 1)
     width = 0.8 / n_methods
     positions = np.arange(len(results.PERCENTILES))
-    own = _own_methods(list(summary["method"]))
+    own = own_methods(list(summary["method"]))
     for i, method in enumerate(methods):
         row = summary[summary["method"] == method].iloc[0]
         heights = [float(row[f"p{p}_s"]) for p in results.PERCENTILES]
         axes.bar(positions + (i - (n_methods - 1) / 2) * width, heights, width * 0.95,
-                 label=method, color=_colour(method, own))
+                 label=method, color=colour(method, own))
     axes.set_xticks(positions, [PERCENTILE_NAMES[p] for p in results.PERCENTILES])
     axes.set_ylabel("latency (s)")
 
@@ -173,7 +104,7 @@ def _latency_comparison(requests: pd.DataFrame, summary: pd.DataFrame,
     present = list(summary["method"])
     methods = [m for m in (results.SAFETAIL, results.ORACLE) if m in present]
     methods += [b for b in results.baselines_of(present) if results.parse_method(b)[1] == 1]
-    own = _own_methods(present)
+    own = own_methods(present)
     methods += own
     title = "(a) Latency: SafeTail, Oracle, x = 1 baselines" + (", your methods" if own else "")
     figure, axes = _new_figure(run, title)
@@ -208,7 +139,7 @@ def _episode_curve(curve: pd.DataFrame, boundary: float, run: RunMetadata, panel
         part = curve[curve["phase"] == phase]
         if not part.empty:
             axes.plot(part["avg_episode"], part["value"], marker="o", markersize=2.5,
-                      linewidth=1.2, color=_PHASE_COLOURS[phase], label=f"{phase}ing")
+                      linewidth=1.2, color=PHASE_COLOURS[phase], label=f"{phase}ing")
     if (curve["phase"] == "test").any() and (curve["phase"] == "train").any():
         axes.axvline(boundary, color="#555555", linestyle=":", linewidth=1)
     axes.set_xlabel(f"average episode number (steps / β, β = {run.beta})")
@@ -221,13 +152,13 @@ def _p99_against_energy(summary: pd.DataFrame, run: RunMetadata) -> Figure:
     """Each method's p99 latency against its mean energy per request (test phase)."""
     figure, axes = _new_figure(run, "p99 latency against energy per request")
     present = list(summary["method"])
-    own = _own_methods(present)
+    own = own_methods(present)
     energy = summary["energy_j_per_request"].to_numpy(dtype=float)
     if not np.isfinite(energy).any():
         axes.set_title(axes.get_title() + "\n(no energy columns: written before them)", fontsize=7)
     for method, energy_j, p99_s in zip(present, energy, summary["p99_s"], strict=True):
         if np.isfinite(energy_j):
-            axes.scatter(energy_j, p99_s, s=22, color=_colour(method, own), label=method, zorder=3)
+            axes.scatter(energy_j, p99_s, s=22, color=colour(method, own), label=method, zorder=3)
             axes.annotate(method, (energy_j, p99_s), textcoords="offset points", xytext=(3, 3), fontsize=6)
     axes.set_xlabel("energy per request (J): servers' copies + the device's radio")
     axes.set_ylabel("p99 latency (s)")
@@ -242,7 +173,7 @@ def _latency_cdf(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata
     figure, axes = _new_figure(run, "Latency CDF, test phase")
     test = requests[requests["phase"] == "test"]
     present = list(summary["method"])
-    own = _own_methods(present)
+    own = own_methods(present)
     for method in present:
         latencies_s = np.sort(test.loc[test["method"] == method, "latency_s"].to_numpy(dtype=float))
         if latencies_s.size == 0:
@@ -255,7 +186,7 @@ def _latency_cdf(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata
         style = "-" if emphasis or level in (None, 1) else ("--" if level == 2 else ":")
         # SafeTail on top: it often runs along Oracle's curve and would be hidden under it.
         layer = 4 if method == results.SAFETAIL else 3 if emphasis else 2
-        axes.step(latencies_s, share, where="post", color=_colour(method, own), label=method,
+        axes.step(latencies_s, share, where="post", color=colour(method, own), label=method,
                   linestyle=style, linewidth=1.8 if emphasis else 1.0, zorder=layer)
     target_s = _average_target_s(requests)
     axes.axvline(target_s, color="black", linestyle="--", linewidth=1,
@@ -311,7 +242,7 @@ def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]
     """
     summary = results.summarize(requests, preset=run.preset, beta=run.beta)
     boundary = results.train_test_boundary(requests, run.beta)
-    with matplotlib.rc_context(_STYLE):
+    with matplotlib.rc_context(STYLE):
         built = {"a": _latency_comparison(requests, summary, run)}
         for panel, family in zip("bcd", results.BASELINE_FAMILIES, strict=True):
             built[panel] = _family_comparison(summary, run, panel, family)
@@ -357,31 +288,7 @@ def draw_figures(
     out = folder / FIGURES_DIR
     out.mkdir(exist_ok=True)
     written: list[Path] = []
-    with matplotlib.rc_context(_STYLE):
+    with matplotlib.rc_context(STYLE):
         for panel, figure in built.items():
-            written += _save(figure, out, FIGURE_STEMS[panel], formats)
+            written += save_figure(figure, out, FIGURE_STEMS[panel], formats)
     return written
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m yafs_safetail.figures DIR``: redraw every figure of a results folder."""
-    parser = ArgumentParser(
-        prog="python -m yafs_safetail.figures",
-        description="Redraw the paper's Figs. 5-7 (a)-(g), p99_vs_energy and latency_cdf from a results folder "
-                    "(requests.csv and run.json) into DIR/figures.",
-    )
-    parser.add_argument("directory", metavar="DIR", help="results folder of one run")
-    parser.add_argument("--figure-format", type=figure_formats, default=DEFAULT_FIGURE_FORMATS,
-                        metavar="FORMATS",
-                        help="comma-separated: png, pdf or both (default: png)")
-    add_verbosity_options(parser)
-    args = parser.parse_args(argv)
-    configure_verbosity(args)
-    written = draw_figures(args.directory, formats=args.figure_format)
-    folder = Path(args.directory) / FIGURES_DIR
-    print_result(args, folder, f"wrote {len(written)} files to {folder}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(run_cli(main))

@@ -1,7 +1,8 @@
 """Figures across seeds: one use case and preset over several run folders, with 95% bands.
 
-``experiments/reproduce_all.py`` draws two per use case and preset into ``OUT/figures/``, each in
-the formats asked (``--figure-format``, PNG by default):
+A reproduction (``yafs-safetail reproduce``, through :mod:`yafs_safetail.results.reproduction`)
+draws two per use case and preset into ``OUT/figures/``, each in the formats asked
+(``--figure-format``, PNG by default):
 
 * ``uc<N>-<preset>-latency-bands``: per method, the median, p90, p95 and p99 latency of the test
   phase as the mean over seeds of each seed's percentile, shaded with the 95% percentile-
@@ -15,8 +16,8 @@ the formats asked (``--figure-format``, PNG by default):
 A bootstrap interval of a mean never leaves the range of the seeds' values, so a band never
 shows an impossible latency or server count. With one seed there is no interval and no band.
 
-The drawing follows :mod:`yafs_safetail.figures` (object API on the Agg canvas, its style and
-colours, files written under a temporary name then renamed). The data behind each band are
+The drawing follows one run's figures (:mod:`.run_figures`: object API on the Agg canvas) with
+the same style, colours and file writing (:mod:`.style`). The data behind each band are
 public functions (:func:`latency_bands`, :func:`servers_bands`), so what is drawn can be checked
 against what was computed.
 """
@@ -38,8 +39,14 @@ from matplotlib.figure import Figure
 
 from yafs_safetail import results
 from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
-from yafs_safetail.figures import _PHASE_COLOURS, _STYLE, _colour, _own_methods, _save
 from yafs_safetail.results import ResultsFileError
+from yafs_safetail.results.figures.style import (
+    PHASE_COLOURS,
+    STYLE,
+    colour,
+    own_methods,
+    save_figure,
+)
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 
 LATENCY_BANDS_STEM = "uc{use_case}-{preset}-latency-bands"
@@ -151,12 +158,12 @@ def _new_figure(series: SeedSeries, title: str, n_panels: int = 1) -> tuple[Figu
     return figure, axes
 
 
-def _band(axes: Axes, x: np.ndarray, low: np.ndarray, high: np.ndarray, colour: str,
+def _band(axes: Axes, x: np.ndarray, low: np.ndarray, high: np.ndarray, band_colour: str,
           name: str) -> None:
     # With one seed there is no interval (NaN): draw no band rather than a zero-width one.
     if np.all(np.isnan(low)):
         return
-    band = axes.fill_between(x, low, high, color=colour, alpha=_BAND_ALPHA, linewidth=0)
+    band = axes.fill_between(x, low, high, color=band_colour, alpha=_BAND_ALPHA, linewidth=0)
     band.set_gid(BAND_GID.format(name=name))
 
 
@@ -175,7 +182,7 @@ def build_latency_band_figure(bands: pd.DataFrame, series: SeedSeries,
     """
     present = list(dict.fromkeys(bands["method"]))
     references = [m for m in (results.SAFETAIL, results.ORACLE) if m in present]
-    references += _own_methods(present)
+    references += own_methods(present)
     families = [f for f in results.BASELINE_FAMILIES if results.baselines_of(present, f)]
     panels = [(f"SafeTail vs {family}-x", [*references, *results.baselines_of(present, family)])
               for family in families] or [("SafeTail and Oracle", references)]
@@ -186,11 +193,11 @@ def build_latency_band_figure(bands: pd.DataFrame, series: SeedSeries,
         axes.set_title(title)
         for method in methods:
             part = bands[bands["method"] == method].sort_values("percentile")
-            colour = _colour(method, _own_methods(present))
+            line_colour = colour(method, own_methods(present))
             axes.plot(positions, part["mean_s"].to_numpy(float), marker="o", markersize=3,
-                      linewidth=1.2, color=colour, label=method)
+                      linewidth=1.2, color=line_colour, label=method)
             _band(axes, positions, part["ci_low_s"].to_numpy(float),
-                  part["ci_high_s"].to_numpy(float), colour, method)
+                  part["ci_high_s"].to_numpy(float), line_colour, method)
         if not math.isnan(average_target_s):
             axes.axhline(average_target_s, color="black", linestyle="--", linewidth=1,
                          label="average target")
@@ -216,11 +223,11 @@ def build_servers_band_figure(bands: pd.DataFrame, series: SeedSeries,
         if part.empty:
             continue
         x = part["avg_episode"].to_numpy(float)
-        colour = _PHASE_COLOURS[phase]
+        line_colour = PHASE_COLOURS[phase]
         axes.plot(x, part["mean"].to_numpy(float), marker="o", markersize=2.5, linewidth=1.2,
-                  color=colour, label=f"{phase}ing")
-        _band(axes, x, part["ci_low"].to_numpy(float), part["ci_high"].to_numpy(float), colour,
-              phase)
+                  color=line_colour, label=f"{phase}ing")
+        _band(axes, x, part["ci_low"].to_numpy(float), part["ci_high"].to_numpy(float),
+              line_colour, phase)
     if not math.isnan(boundary):
         axes.axvline(boundary, color="#555555", linestyle=":", linewidth=1)
     # A request uses between 1 and n servers: the axis shows that whole range.
@@ -262,7 +269,7 @@ def _build(folders: Sequence[str | os.PathLike[str]]) -> tuple[SeedSeries, dict[
     boundaries = {results.train_test_boundary(r, series.beta) for r in requests}
     # Seeds of one reproduction train for the same number of steps; if not, no single line.
     boundary = boundaries.pop() if len(boundaries) == 1 else math.nan
-    with matplotlib.rc_context(_STYLE):
+    with matplotlib.rc_context(STYLE):
         return series, {
             "latency": build_latency_band_figure(latency_bands(stats), series, average_target_s),
             "servers": build_servers_band_figure(servers_bands(requests, series.beta), series,
@@ -273,7 +280,7 @@ def _build(folders: Sequence[str | os.PathLike[str]]) -> tuple[SeedSeries, dict[
 def draw_multiseed_figures(folders: Sequence[str | os.PathLike[str]],
                            out_dir: str | os.PathLike[str],
                            formats: Sequence[str] = DEFAULT_FIGURE_FORMATS) -> list[Path]:
-    """Draw both figures into ``out_dir`` in each of ``formats`` (figures.FIGURE_FORMATS).
+    """Draw both figures into ``out_dir`` in each of ``formats`` (defaults.FIGURE_FORMATS).
 
     Args:
         folders: run folders of one use case and preset, one per seed.
@@ -291,8 +298,8 @@ def draw_multiseed_figures(folders: Sequence[str | os.PathLike[str]],
     out.mkdir(parents=True, exist_ok=True)
     stems = {"latency": LATENCY_BANDS_STEM, "servers": SERVERS_BANDS_STEM}
     written: list[Path] = []
-    with matplotlib.rc_context(_STYLE):
+    with matplotlib.rc_context(STYLE):
         for key, figure in built.items():
-            written += _save(figure, out, stems[key].format(use_case=series.use_case,
+            written += save_figure(figure, out, stems[key].format(use_case=series.use_case,
                                                             preset=series.preset), formats)
     return written
