@@ -99,3 +99,19 @@ def test_random_waypoint_is_drawn_per_phase_from_the_seed(campus):
 def test_a_topology_without_server_positions_cannot_host_a_moving_user(uc1):
     with pytest.raises(MovementError, match=r"paper_5servers\.json: edge servers: a user who moves needs"):
         world(uc1, MobilityPlan(route=Route(np.zeros(1), np.zeros((1, 2)), "here")))
+
+
+def test_requests_rows_say_where_the_user_was_and_each_chosen_links_condition(campus):
+    from yafs_safetail.methods.baselines import RandX
+    from yafs_safetail.record import MOVEMENT_COLUMNS, RECORD_COLUMNS, records_frame
+    from yafs_safetail.sim.runner import simulate
+
+    moving = world(campus, MobilityPlan(route=read_route(WALK, None)), n_steps=12)
+    records = simulate(moving, RandX(5, np.random.default_rng(0), 2))
+    rows = records_frame(records, "test", 256, moving.movement)
+    assert tuple(rows.columns) == (*RECORD_COLUMNS, *MOVEMENT_COLUMNS)
+    assert rows.loc[2, ["user_x_m", "user_y_m"]].tolist() == [150.0, 0.0]
+    for record, text in zip(records, rows["conditions"], strict=True):
+        assert text == ";".join(str(moving.movement.conditions[record.step, s]) for s in record.servers)
+    still = records_frame(simulate(world(campus, n_steps=12), RandX(5, np.random.default_rng(0), 2)), "test", 256)
+    assert tuple(still.columns) == RECORD_COLUMNS

@@ -12,9 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
+
+if TYPE_CHECKING:
+    from yafs_safetail.edge.movement import Movement
 
 PHASES: tuple[str, ...] = ("train", "test")
 
@@ -52,6 +55,14 @@ OUTCOME_ENERGY_SCHEMA: dict[str, str] = {
     "saved_energy_j": "float",
 }
 OUTCOME_ENERGY_COLUMNS: tuple[str, ...] = tuple(OUTCOME_ENERGY_SCHEMA)
+#: Columns written last, and only when the user moves (docs/mobility.md): where the user sent
+#: the request from, and each chosen server's link condition then, in ``servers`` order.
+MOVEMENT_SCHEMA: dict[str, str] = {
+    "user_x_m": "float",
+    "user_y_m": "float",
+    "conditions": "str",
+}
+MOVEMENT_COLUMNS: tuple[str, ...] = tuple(MOVEMENT_SCHEMA)
 #: The separator of server indices in the ``servers`` column ("0;2;4").
 SERVERS_SEPARATOR = ";"
 
@@ -139,11 +150,14 @@ _COLUMN_VALUES: dict[str, Callable[[RequestRecord], Any]] = {
 RECORD_COLUMNS: tuple[str, ...] = (*REQUESTS_COLUMNS, "epsilon", *OUTCOME_ENERGY_COLUMNS)
 
 
-def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: int) -> pd.DataFrame:
-    """The ``requests.csv`` rows of one method and phase (:data:`RECORD_COLUMNS`).
+def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: int,
+                  movement: Movement | None = None) -> pd.DataFrame:
+    """The ``requests.csv`` rows of one method and phase (:data:`RECORD_COLUMNS`, then
+    :data:`MOVEMENT_COLUMNS` when the phase's user moves).
 
     Every column but ``phase`` and ``episode`` (which the records do not hold) is the record's
-    attribute of that name, or its :data:`_COLUMN_VALUES` entry.
+    attribute of that name, or its :data:`_COLUMN_VALUES` entry; the movement columns are read
+    from the phase's ``movement`` at each record's step.
     """
     columns: dict[str, Any] = {}
     for name in RECORD_COLUMNS:
@@ -155,4 +169,10 @@ def records_frame(records: Sequence[RequestRecord], phase: str, episode_steps: i
             columns[name] = [_COLUMN_VALUES[name](r) for r in records]
         else:
             columns[name] = [getattr(r, name) for r in records]
+    if movement is not None:
+        steps = [r.step for r in records]
+        columns["user_x_m"] = movement.user_position_m[steps, 0] if steps else []
+        columns["user_y_m"] = movement.user_position_m[steps, 1] if steps else []
+        columns["conditions"] = [SERVERS_SEPARATOR.join(str(int(movement.conditions[r.step, server]))
+                                                        for server in r.servers) for r in records]
     return pd.DataFrame(columns)
