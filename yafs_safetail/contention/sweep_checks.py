@@ -7,9 +7,9 @@ import argparse
 import math
 from typing import Any
 
-from yafs_safetail.cli import load_list
 from yafs_safetail.defaults import OBJECTIVES
 from yafs_safetail.runs.settings import Check
+from yafs_safetail.settings.parse import load_list
 
 
 def _method_names(text: str) -> tuple[str, ...]:

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from yafs_safetail import cli
 from yafs_safetail.defaults import FIGURE_FORMATS, figure_formats
+from yafs_safetail.settings import parse
 
 # ----------------------------------------------------------------------------- checks
 
@@ -51,12 +51,12 @@ def _is_integer(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, int)
 
 
-POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, cli.positive_float)
+POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, parse.positive_float)
 NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: _is_number(v) and v >= 0,
-                            cli.non_negative_float)
-POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, cli.positive_int)
+                            parse.non_negative_float)
+POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, parse.positive_int)
 NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: _is_integer(v) and v >= 0,
-                             cli.non_negative_int)
+                             parse.non_negative_int)
 BOOLEAN = Check("true or false", lambda v: isinstance(v, bool))
 
 
