@@ -1,7 +1,7 @@
 """--help and a bad argument answer before anything heavy loads (issue 30: within 0.3 s).
 
 Each case runs in a fresh interpreter and lists, at exit, which heavy libraries were imported.
-The run command's options come from runs.config, so this also guards that module's imports.
+The run command's options come from settings.experiment, so this also guards that module's imports.
 """
 
 from __future__ import annotations

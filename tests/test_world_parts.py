@@ -1,4 +1,5 @@
-"""What every world is drawn from (edge.world_parts): one draw, one way to apply overrides."""
+"""What every world is drawn from (edge.world_parts): one draw; one way to apply overrides
+(settings.world)."""
 
 from __future__ import annotations
 
@@ -9,19 +10,9 @@ import pytest
 
 from yafs_safetail.edge.calibration import CALIBRATED_V1, LANDED
 from yafs_safetail.edge.world import build_world
-from yafs_safetail.edge.world_parts import (
-    WorldOverrideError,
-    WorldParts,
-    apply_world_overrides,
-)
-
-
-@dataclasses.dataclass(frozen=True)
-class _Overrides:
-    target_latency_s: float | None = None
-    load_peak_users: float | None = None
-    target_compute: str | None = None
-    baseline_reading: str | None = None
+from yafs_safetail.edge.world_parts import WorldParts
+from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
+from yafs_safetail.settings.world import WorldOverrides as _Overrides
 
 
 def test_draw_is_build_world_with_the_parts_settings(uc1):

@@ -70,7 +70,7 @@ class ArgumentParser(argparse.ArgumentParser):
     (``yafs-safetail run``) instead of the script's own ``prog``, since that is what the user
     typed; run directly, a script keeps its own name. Every parser with ``--help`` also has
     ``--version``, and an option declared with ``type=Path`` (by hand or by
-    ``runs.config.add_options``) reads its value through :func:`user_path`.
+    ``settings.declare.add_options``) reads its value through :func:`user_path`.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

@@ -2,7 +2,7 @@
 runs (``yafs_safetail.cli``), and what ``experiments/<module>.py`` runs in the checkout.
 
 Each module reads top to bottom: its options, their checks, then the work. Only light modules
-(the standard library, ``cli``, ``defaults``, ``runs.config``) are imported before the arguments
+(the standard library, ``cli``, ``defaults``, ``settings``) are imported before the arguments
 are checked where the command's options allow it, so that ``--help`` and a bad argument answer
 at once.
 """

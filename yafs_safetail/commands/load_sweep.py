@@ -52,8 +52,8 @@ from yafs_safetail.cli import (
 from yafs_safetail.contention.config import LINK_MODELS, ContentionConfig, ContentionError
 from yafs_safetail.contention.sweep_config import ContentionSweep, SweepConfig
 from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
-from yafs_safetail.runs.config import add_options, config_from_args
 from yafs_safetail.runs.engine_options import add_engine_options, engine_free_command
+from yafs_safetail.settings.declare import add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
 
 if TYPE_CHECKING:

@@ -58,14 +58,14 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.defaults import PRESET_NAMES
 from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.runs.config import (
+from yafs_safetail.runs.engine_options import add_engine_options
+from yafs_safetail.settings.declare import add_options, field_of, setting_of
+from yafs_safetail.settings.experiment import (
+    ExperimentConfig,
     ExperimentError,
     LearnerOverrides,
     Task,
-    add_options,
-    setting_of,
 )
-from yafs_safetail.runs.engine_options import add_engine_options
 
 
 def _presets(text: str) -> tuple[str, ...]:
@@ -84,7 +84,7 @@ def _check_methods(specs: Sequence[str]) -> None:
         ExperimentError: two policies with one name (a file or class that cannot be loaded
             raises the registry's PolicyError, also one line).
     """
-    load = setting_of(next(f for f in dataclasses.fields(Task) if f.name == "methods")).from_cli
+    load = setting_of(field_of(Task, "methods")).from_cli
     names = [method.name for method in (load(specs) if load is not None else ())]
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
@@ -101,19 +101,19 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="preset(s), comma-separated (default paper)")
     parser.add_argument("--out", type=Path, default=Path("results/reproduce"),
                         help="output folder (default results/reproduce)")
-    # The settings every run shares, each declared once in runs.config (its type, check and
+    # The settings every run shares, each declared once in settings.experiment (its type, check and
     # default); the help says what they mean for the whole reproduction.
-    add_options(parser, only=("steps_scale", "target_compute"),
+    add_options(parser, ExperimentConfig, only=("steps_scale", "target_compute"),
                 steps_scale={"help": "fraction of each preset's steps (default 1)"},
                 target_compute={"help": "C(s_j) of Eq. 4 for every run (default: each preset world's; "
                                         "deviation D11 in the documentation)"})
     add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
                 learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
                                        "report then says these are not the presets' results)"})
-    add_options(parser, only=("methods",),
+    add_options(parser, ExperimentConfig, only=("methods",),
                 methods={"help": "add your own Policy to every run and to the report (also "
                                  "module:Class; repeatable; named after the class unless NAME= is given)"})
-    add_options(parser, only=("figures", "figure_formats"), figures={"help": "skip the per-run figures"})
+    add_options(parser, ExperimentConfig, only=("figures", "figure_formats"), figures={"help": "skip the per-run figures"})
     parser.add_argument("--overwrite", action="store_true",
                         help="replace run folders in --out that hold another configuration")
     add_engine_options(parser)

@@ -34,7 +34,7 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.sweep_config import SweepConfig
-from yafs_safetail.runs.config import add_options, config_from_args
+from yafs_safetail.settings.declare import add_options, config_from_args
 
 #: Windows of training per load (contention.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).
 DEFAULT_WINDOWS = 20

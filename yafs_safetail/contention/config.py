@@ -20,9 +20,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, WORLD_OVERRIDES
+from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.energy import EnergyModel
 from yafs_safetail.edge.failure_settings import FailureSettings
+from yafs_safetail.settings.world import WORLD_OVERRIDES, WorldOverrides
 
 if TYPE_CHECKING:
     import numpy as np
@@ -50,7 +51,7 @@ class ContentionError(ValueError):
 
 
 @dataclass(frozen=True)
-class ContentionConfig:
+class ContentionConfig(WorldOverrides):
     """One contention-world run of one method (everything but the method).
 
     Attributes:
@@ -86,8 +87,8 @@ class ContentionConfig:
         energy: the servers' and the devices' power models that price every copy.
         target_latency_s, load_peak_users, target_compute, baseline_reading: the run's
             overrides of the world's
-            settings, as the experiment's options of these names (``defaults.WORLD_OVERRIDES``,
-            applied by the same ``edge.world_parts.apply_world_overrides``); None keeps the
+            settings, as the experiment's options of these names (``settings.world.WORLD_OVERRIDES``,
+            applied by the same ``settings.world.apply_world_overrides``); None keeps the
             world's own.
     """
 
@@ -111,15 +112,6 @@ class ContentionConfig:
     user_conditions: str | Path = "topology"
     failures: FailureSettings = FailureSettings()
     energy: EnergyModel = EnergyModel()
-    target_latency_s: float | None = None
-    load_peak_users: float | None = None
-    target_compute: str | None = None
-    baseline_reading: str | None = None
-
-    def world_overrides(self) -> dict[str, Any]:
-        """The overrides of the world's settings it sets (a sweep point's settings record only
-        these, so the run id of a point without any stays what it was before they existed)."""
-        return {name: getattr(self, name) for name in WORLD_OVERRIDES if getattr(self, name) is not None}
 
     def with_world_overrides(self, settings: Mapping[str, Any]) -> ContentionConfig:
         """This configuration with the world overrides a sweep point's ``settings`` record."""

@@ -8,7 +8,7 @@ import math
 from typing import Any
 
 from yafs_safetail.defaults import OBJECTIVES
-from yafs_safetail.runs.settings import Check
+from yafs_safetail.settings.declare import Check
 from yafs_safetail.settings.parse import load_list
 
 

@@ -1,8 +1,8 @@
 """What a contention sweep is: its axis, methods and SafeTails (:class:`ContentionSweep`; the
 load sweep :class:`SweepConfig`, the failure sweep :class:`FailureSweepConfig`), each field
-declared once with its option and check (``runs.settings.setting``).
+declared once with its option and check (``settings.declare.setting``).
 
-Light modules only (the standard library, ``cli``, ``defaults``, ``runs.settings``,
+Light modules only (the standard library, ``defaults``, ``settings``,
 ``contention.config``, ``edge.failure_settings``): the sweep commands build their parsers from
 these classes, and ``--help`` or a bad argument must answer before NumPy, pandas or TensorFlow
 loads (``tests/test_first_answer.py``). What needs the learner's presets (each SafeTail's training
@@ -32,7 +32,7 @@ from yafs_safetail.contention.sweep_checks import (
 )
 from yafs_safetail.defaults import PRESET_NAMES, SAFETAIL, SAFETAIL_DISPATCH
 from yafs_safetail.edge.failure_settings import DEFAULT_MTTR_S, FailureSettings
-from yafs_safetail.runs.settings import (
+from yafs_safetail.settings.declare import (
     BOOLEAN,
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
@@ -150,7 +150,7 @@ class SafeTailVariant:
 class ContentionSweep:
     """What every sweep shares: the contention world of every point (``base``; what the axis
     varies, ``phase`` and ``n_requests`` are set per point and phase) and the methods and
-    SafeTails it runs, each field declared once with its help (``runs.settings.setting``; the
+    SafeTails it runs, each field declared once with its help (``settings.declare.setting``; the
     sweep commands derive their options from them). ``learners`` names the SafeTails it trains
     (:attr:`safetails` resolves each one's preset, dispatch and reward). The value learner has
     its own reward (``"latency-cost"``), so ``reward`` is the paper learner's and stays

@@ -53,7 +53,6 @@ from yafs_safetail.methods.safetail.presets import LearnerConfig
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
 from yafs_safetail.runs.budget import check_budget
 from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint, resumable_after
-from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
 from yafs_safetail.runs.figures_worker import FiguresWorker, start_figures_worker
 from yafs_safetail.runs.learners import check_learners, learner_names, make_learners
 from yafs_safetail.runs.output import StagedOutput
@@ -61,7 +60,11 @@ from yafs_safetail.runs.phases import LearnersJob, run_learners, run_other_metho
 from yafs_safetail.runs.provenance import run_metadata
 from yafs_safetail.runs.training import Checkpoints
 from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, method_rng, start_workers
-from yafs_safetail.runs.world_recipe import TEST, TRAIN, world_recipe
+from yafs_safetail.settings.experiment import (  # (also imported from here)
+    ExperimentConfig,
+    ExperimentError,
+)
+from yafs_safetail.settings.world_recipe import TEST, TRAIN, world_recipe
 from yafs_safetail.sim.selection import DISPATCH as SINGLE_USER_DISPATCH
 
 POLICY_FILE = "policy.keras"

@@ -11,7 +11,7 @@ world ``run_usecase.py --seed s`` trains in (or tests in, ``phase="test"``), and
 sends one request to the chosen subset and runs the simulation until that request has its
 first reply. SafeTail trained through this environment gives the same records and weights as
 ``run_usecase.py`` (tested). Its world comes from the same recipe as the experiment's
-(``runs.world_recipe``), so it takes the same world options: ``target_latency_s``,
+(``settings.world_recipe``), so it takes the same world options: ``target_latency_s``,
 ``load_peak_users`` and ``target_compute`` as ``--target-latency-s``, ``--load-peak-users`` and
 ``--target-compute``, and the failures and power models (``failure_mttf_s``, ``failure_mttr_s``,
 ``failure_probability``, ``down_intervals``, ``timeout_s``, ``server_idle_w``, ``server_max_w``;
@@ -68,8 +68,8 @@ from yafs_safetail.methods.safetail.reward import priced_reward, reward
 from yafs_safetail.methods.safetail.spaces import StateScales, n_actions, subset_of
 from yafs_safetail.observation_space import OBSERVATION_KINDS, encode_observation, observation_space
 from yafs_safetail.record import PHASES, RequestRecord
-from yafs_safetail.runs.config import ExperimentConfig
-from yafs_safetail.runs.world_recipe import world_recipe
+from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.world_recipe import world_recipe
 from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
 
