@@ -11,7 +11,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from yafs_safetail.contention.sweep import point_specs
 from yafs_safetail.contention.sweep_config import (
     DEFAULT_FAILURE_LOAD,
     FAILURE_POINT,
@@ -21,6 +20,7 @@ from yafs_safetail.contention.sweep_config import (
 from yafs_safetail.contention.sweep_report import failure_checks
 from yafs_safetail.contention.world import ContentionConfig, ContentionError
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S
+from yafs_safetail.runs.sweep_points import point_specs
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 FAILURE_SWEEP = REPOSITORY / "experiments" / "failure_sweep.py"

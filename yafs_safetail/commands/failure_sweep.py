@@ -71,12 +71,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     configure_verbosity(args)
     # The arguments are checked: now the sweep and its report, with NumPy and pandas.
-    from yafs_safetail.contention.sweep import point_specs
     from yafs_safetail.contention.sweep_report import (
         FAILURE_REPORT,
         checks_markdown,
         failure_checks,
     )
+    from yafs_safetail.runs.sweep_points import point_specs
 
     check_methods(args)
     config: FailureSweepConfig = config_from_args(args, FailureSweepConfig, base=contention_base(args, args.seed))

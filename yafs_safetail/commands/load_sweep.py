@@ -226,7 +226,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     # The arguments are checked: now the sweep and its report, with NumPy and pandas.
     import pandas as pd
 
-    from yafs_safetail.contention.sweep import point_specs
     from yafs_safetail.contention.sweep_report import (
         LOAD_REPORT,
         checks_markdown,
@@ -236,6 +235,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     from yafs_safetail.results.files import write_text_atomic
     from yafs_safetail.runs.output import SWEEP_FILE
+    from yafs_safetail.runs.sweep_points import point_specs
 
     check_methods(args)
     seed_list = args.seeds if args.seeds is not None else (args.seed,)

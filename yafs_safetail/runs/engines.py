@@ -82,7 +82,7 @@ def _run_experiment(task: RunTask) -> None:
 
 
 def _run_sweep_point(task: RunTask) -> None:
-    from yafs_safetail.contention.sweep import run_sweep_point
+    from yafs_safetail.runs.sweep_points import run_sweep_point
 
     run_sweep_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
 

@@ -47,7 +47,7 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
-from yafs_safetail.methods.registry import baseline_names, sort_methods
+from yafs_safetail.methods.registry import baseline_names, method_rng, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
@@ -59,7 +59,7 @@ from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.phases import LearnersJob, run_learners, run_other_methods
 from yafs_safetail.runs.provenance import run_metadata
 from yafs_safetail.runs.training import Checkpoints
-from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, method_rng, start_workers
+from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, start_workers
 from yafs_safetail.settings.experiment import (  # (also imported from here)
     ExperimentConfig,
     ExperimentError,

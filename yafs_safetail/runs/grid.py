@@ -70,7 +70,7 @@ class RunSpec:
         settings: the ExperimentConfig fields it sets, JSON values (paths absolute).
         kind: what executes it: ``"experiment"`` (``run_experiment``), ``"load_point"`` or
             ``"failure_point"`` (one point of a contention-world load or failure sweep,
-            ``contention.sweep.run_sweep_point``).
+            ``runs.sweep_points.run_sweep_point``).
     """
 
     name: str

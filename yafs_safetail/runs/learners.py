@@ -15,9 +15,8 @@ from typing import TYPE_CHECKING
 
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
-from yafs_safetail.methods.registry import SAFETAIL, UserMethod
+from yafs_safetail.methods.registry import SAFETAIL, UserMethod, method_rng
 from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
-from yafs_safetail.runs.workers import method_rng
 
 if TYPE_CHECKING:
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
