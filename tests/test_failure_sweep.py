@@ -32,7 +32,7 @@ REQUIRED = ("method", "failure_level", "success_rate", "p99_s", "energy_j_per_re
 def test_failure_sweep_small_budget(tmp_path):
     out = tmp_path / "failures"
     command = [sys.executable, str(FAILURE_SWEEP), "--uc", "1", "--users", "10", "--failure-levels", "0.2,0",
-               "--steps-scale", "0.02", "--learner", "target-vector", "--methods", "Oracle,Rand-1,MinLoad-2,Tied",
+               "--steps-scale", "0.02", "--objectives", "target-vector", "--methods", "Oracle,Rand-1,MinLoad-2,Tied",
                # Short outages: the 400 requests span a few minutes, and each server should fail in them.
                "--mttr-s", "5", "--seed", "3", "--out", str(out)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=900)

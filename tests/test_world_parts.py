@@ -53,7 +53,7 @@ def test_the_contention_world_takes_the_experiments_world_overrides():
     plain = ContentionWorld(base, world.inputs, world.scenario)
     assert plain.settings == CALIBRATED_V1
     np.testing.assert_array_equal(plain.emit_s, world.emit_s)  # the arrivals do not move
-    with pytest.raises(ContentionError, match="^load_peak_users: -1.0 is out of range$"):
+    with pytest.raises(ContentionError, match="^load_peak_users: expected a non-negative number, got -1.0$"):
         ContentionWorld(dataclasses.replace(base, load_peak_users=-1.0), world.inputs, world.scenario)
 
 

@@ -90,6 +90,24 @@ class ArgumentParser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+#: Options that are not settings: where a command writes, what it reads besides its settings and
+#: how many processes it uses, never what it computes. A setting's option comes from its
+#: declaration (``settings.declare.add_options``), never from here (tests/test_option_sources.py).
+PLUMBING_FLAGS = ("--out", "--overwrite", "--grid", "--apply", "--workers")
+
+
+def add_plumbing(parser: argparse._ActionsContainer, flag: str, **keywords: Any) -> None:
+    """Add one option that is not a setting (:data:`PLUMBING_FLAGS`, or a positional input such as
+    a results folder).
+
+    Raises:
+        TypeError: any other option: a setting is declared (``settings.declare.setting``).
+    """
+    if flag.startswith("-") and flag not in PLUMBING_FLAGS:
+        raise TypeError(f"{flag}: not a plumbing option; declare it as a setting (settings.declare)")
+    parser.add_argument(flag, **keywords)
+
+
 def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
     """``--quiet`` and ``--verbose`` (mutually exclusive), for every entry point."""
     group = parser.add_mutually_exclusive_group()

@@ -110,7 +110,7 @@ class ContentionWorld(OnWorldParts):
 
     def __init__(self, config: ContentionConfig, inputs: TraceInputs | None = None,
                  scenario: EdgeScenario | None = None) -> None:
-        check_contention_config(config)
+        check_contention_config(config, style="field")  # a Python API: named as its fields
         self.config = config
         try:  # the named world with the run's overrides, as the experiment applies its own
             settings, _ = apply_world_overrides(world_settings(config.world), config)

@@ -142,6 +142,8 @@ class Setting:
         from_cli: turns the parsed value into the field's value (e.g. specs into methods).
         in_grid: a campaign grid may set it although it does not change the results (which
             copies of the figures a run draws); it stays out of the run id.
+        negation: for a flag (``store_true``), an option that says its default explicitly, the
+            two mutually exclusive (kept for scripts that passed it).
         deprecated: older spellings of its option that still work, each saying on stderr that it
             is deprecated and which option replaces it (kept only while documented commands of
             earlier versions may use them).
@@ -156,6 +158,7 @@ class Setting:
     metavar: str | None = None
     from_cli: Callable[[Any], Any] | None = None
     in_grid: bool = False
+    negation: str | None = None
     deprecated: tuple[str, ...] = ()
 
     def option(self, name: str) -> str:
@@ -337,11 +340,20 @@ def add_options(parser: argparse._ActionsContainer, config_class: type,
             if default != (about.action == "store_false"):
                 raise TypeError(f"{item.name}: {flag} would only set its default {default!r}")
             keywords.update(action=about.action, default=default)
+            if about.negation is not None:  # the flag and its explicit default, one or the other
+                both = parser.add_mutually_exclusive_group()
+                both.add_argument(flag, **keywords, **changes.get(item.name, {}))
+                both.add_argument(about.negation, dest=item.name, default=default,
+                                  action="store_false" if about.action == "store_true" else "store_true",
+                                  help=f"the default, without {flag} (kept for older scripts)")
+                continue
         elif about.action == "append":
             keywords.update(action="append", default=[])
         else:
             keywords["default"] = default
             keywords.update(_value_keywords(item, about, flag))
+            if default != item.default and not isinstance(default, bool):  # the command's own default
+                keywords["help"] = f"{about.help} (default here: {_shown(default)})"
         keywords.update(changes.get(item.name, {}))
         parser.add_argument(flag, **keywords)
         for alias in about.deprecated:  # hidden from --help: only the option to use is listed
@@ -422,6 +434,8 @@ def check_config(config: Any, style: str = "option") -> None:
     """
     error: type[ValueError] = getattr(type(config), "setting_error", SettingError)
     for item in fields(config):
+        if not has_setting(item):  # a part checked on its own (a sweep's base world)
+            continue
         about = setting_of(item)
         value = getattr(config, item.name)
         if about.check is None or (value is None and about.optional):
