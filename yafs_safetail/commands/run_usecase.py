@@ -67,11 +67,7 @@ def _parser() -> ArgumentParser:
                                  "-x<scale> after the seed with --steps-scale, and +<name> at the "
                                  "end for each --method); never replaced unless --overwrite"},
                 placement={"default": None})
-    yafs_csv = parser.add_mutually_exclusive_group()
-    add_options(yafs_csv, ExperimentConfig, only=("write_yafs_csv",))
-    yafs_csv.add_argument("--no-yafs-csv", action="store_true",
-                          help="do not write the YAFS CSVs (the default; kept for older scripts)")
-    add_options(parser, ExperimentConfig, only=("figures",))
+    add_options(parser, ExperimentConfig, only=("write_yafs_csv", "figures"))
     # Any other setting with an option (a learner hyperparameter added to settings.experiment) too.
     add_options(parser, ExperimentConfig, exclude=(*OPTIONS, "write_yafs_csv", "figures"))
     add_verbosity_options(parser)

@@ -111,10 +111,10 @@ def _check(config: ExperimentConfig) -> _Inputs:
     if config.learning_rate is not None and config.policy is not None:
         raise ExperimentError("--learning-rate: nothing trains with --policy; give one or the other")
     if config.objective is not None and config.policy is not None:
-        raise ExperimentError("--learner: a saved policy has its own learner (--policy); give one or the other")
+        raise ExperimentError("--objective: a saved policy has its own learner (--policy); give one or the other")
     if config.n_networks is not None and config.objective != "value":
         raise ExperimentError(f"--value-networks {config.n_networks}: only the value learner averages "
-                              "networks; give --learner value")
+                              "networks; give --objective value")
     if not config.redundancy_levels:
         raise ExperimentError("--redundancy: give at least one level x")
     recipe = world_recipe(config)  # every field's own check, then the traces and the scenario

@@ -198,10 +198,10 @@ class LearnerOverrides:
         None, "beyond the paper: SafeTail's learner, target-vector (the paper's §III, the default) or "
         "value (the network regresses each action's latency score, less the D15 prices when set, "
         "and copies to busy servers are priced at dispatch: the contention world's SafeTail-CA "
-        "learner; deviations D13, D15 in the documentation)", check=one_of(OBJECTIVES), flag="--learner",
-        optional=True)
+        "learner; deviations D13, D15 in the documentation)", check=one_of(OBJECTIVES),
+        optional=True, deprecated=("--learner",))
     n_networks: int | None = setting(
-        None, "with --learner value: how many value networks, each from its own initial weights, "
+        None, "with --objective value: how many value networks, each from its own initial weights, "
         "SafeTail averages (default 1; deviation D13 in the documentation)", check=POSITIVE_INTEGER,
         flag="--value-networks", optional=True)
 
@@ -223,7 +223,8 @@ class Output:
     out_dir: Path = setting(Path("results/uc1"), "results folder, written only when the run succeeds; "
                             "never replaced unless --overwrite", changes_results=False, flag="--out")
     write_yafs_csv: bool = setting(False, "also write each method's YAFS result CSVs under yafs/ (~70 MB for UC1)",
-                                   check=BOOLEAN, flag="--yafs-csv", action="store_true")
+                                   check=BOOLEAN, flag="--yafs-csv", action="store_true",
+                                   negation="--no-yafs-csv")
     figures: bool = setting(True, "skip the figures", check=BOOLEAN, flag="--no-figures", action="store_false")
     # Which copies of the same figures: not part of the run id, like the run's log.
     figure_formats: tuple[str, ...] = setting(
