@@ -235,7 +235,7 @@ def test_an_exception_in_the_engine_surfaces_in_step(monkeypatch):
 
 
 @pytest.mark.parametrize(("options", "field"), [
-    ({"users": 0}, "--users"), ({"load": -0.5}, "load"), ({"links": "wifi"}, "--links"),
+    ({"users": 0}, "users"), ({"load": -0.5}, "load"), ({"links": "wifi"}, "links"),
     ({"dispatch": "hedge"}, "dispatch"), ({"target": "mean"}, "target"), ({"reward": "speed"}, "reward"),
     ({"preset": "fancy"}, "preset"), ({"observation": "image"}, "observation"),
     ({"phase": "warmup"}, "phase"), ({"episode_requests": 0}, "episode_requests"),
