@@ -47,8 +47,8 @@ import numpy as np
 
 from yafs_safetail.edge.failures import END_ALL_LOST, FailureSettings
 from yafs_safetail.methods.baselines import RandX
-from yafs_safetail.runs.config import ExperimentConfig
-from yafs_safetail.runs.world_recipe import world_recipe
+from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.world_recipe import world_recipe
 from yafs_safetail.sim.runner import simulate
 
 #: Mean time to failure: a thousand times a UC1 compute time (see the module docstring).

@@ -25,8 +25,7 @@ from yafs_safetail.edge.movement import MobilityPlan, default_area_m
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world
-from yafs_safetail.methods.registry import make_baseline
-from yafs_safetail.runs.workers import method_rng
+from yafs_safetail.methods.registry import make_baseline, method_rng
 from yafs_safetail.sim.runner import simulate
 
 METHODS = ("Oracle", "Rand-1", "MinLoad-1", "MinProp-1")

@@ -25,7 +25,7 @@ from yafs_safetail.contention.run import run_policy, summarise
 from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.hedging import Tied
-from yafs_safetail.runs.workers import method_rng
+from yafs_safetail.methods.registry import method_rng
 
 
 class TiedCoinToss(Tied):

@@ -215,10 +215,10 @@ def test_version_is_the_packages(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_a_tilde_in_any_path_option_is_the_home_folder(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
     from yafs_safetail.commands import run_usecase
-    from yafs_safetail.runs.config import ExperimentConfig
+    from yafs_safetail.settings.experiment import ExperimentConfig
 
     monkeypatch.setenv("HOME", str(tmp_path))
-    # Options declared in runs.config (through add_options) and by hand alike.
+    # Options declared in settings.experiment (through add_options) and by hand alike.
     config: ExperimentConfig = run_usecase.parse_args(
         ["--uc", "1", "--out", "~/run", "--topology", "~/t.json", "--placement", "~/p.json",
          "--policy", "~/policy.keras"])

@@ -1,4 +1,4 @@
-"""runs.config: each setting declared once, and what is derived from it (options, checks, run id)."""
+"""settings.experiment: each setting declared once, and what is derived from it (options, checks, run id)."""
 
 from __future__ import annotations
 
@@ -11,18 +11,15 @@ import pytest
 
 from yafs_safetail.methods.safetail.presets import get_preset
 from yafs_safetail.runs import grid
-from yafs_safetail.runs.config import (
+from yafs_safetail.settings.declare import add_options, check_config, config_from_args, setting_of
+from yafs_safetail.settings.experiment import (
     GROUPS,
     RESULT_FIELDS,
     ExperimentConfig,
     ExperimentError,
     LearnerOverrides,
-    add_options,
-    check_config,
-    config_from_args,
     learner_config,
     learner_overrides,
-    setting_of,
 )
 
 
@@ -44,19 +41,19 @@ def test_the_experiment_module_still_exports_the_configuration():
 
 def test_options_parse_back_to_the_configuration():
     parser = argparse.ArgumentParser()
-    add_options(parser)
+    add_options(parser, ExperimentConfig)
     config = config_from_args(parser.parse_args([
         "--uc", "2", "--seed", "7", "--steps-scale", "0.5", "--redundancy", "1,2", "--no-figures",
-        "--target-compute", "request", "--learning-rate", "0.001", "--out", "somewhere", "--workers", "1"]))
+        "--target-compute", "request", "--learning-rate", "0.001", "--out", "somewhere", "--workers", "1"]), ExperimentConfig)
     assert config == ExperimentConfig(use_case=2, seed=7, steps_scale=0.5, redundancy_levels=(1, 2),
                                       figures=False, target_compute="request", learning_rate=0.001,
                                       out_dir=Path("somewhere"), workers=1)
-    assert config_from_args(parser.parse_args([])) == ExperimentConfig()
+    assert config_from_args(parser.parse_args([]), ExperimentConfig) == ExperimentConfig()
 
 
 def test_a_bad_option_is_refused_by_its_declared_check():
     parser = argparse.ArgumentParser(exit_on_error=False)
-    add_options(parser, only=("seed",))
+    add_options(parser, ExperimentConfig, only=("seed",))
     with pytest.raises(argparse.ArgumentError, match="expected a non-negative integer"):
         parser.parse_args(["--seed", "-1"])
 

@@ -235,7 +235,7 @@ def test_an_exception_in_the_engine_surfaces_in_step(monkeypatch):
 
 
 @pytest.mark.parametrize(("options", "field"), [
-    ({"users": 0}, "--users"), ({"load": -0.5}, "--load"), ({"links": "wifi"}, "--links"),
+    ({"users": 0}, "users"), ({"load": -0.5}, "load"), ({"links": "wifi"}, "links"),
     ({"dispatch": "hedge"}, "dispatch"), ({"target": "mean"}, "target"), ({"reward": "speed"}, "reward"),
     ({"preset": "fancy"}, "preset"), ({"observation": "image"}, "observation"),
     ({"phase": "warmup"}, "phase"), ({"episode_requests": 0}, "episode_requests"),
@@ -269,12 +269,11 @@ def test_safetail_ca_learning_through_the_environment_is_the_sweeps_run():
     """The sweep's contention-aware SafeTail, trained through the environment (its choices as
     actions, each completed record as its feedback), learns and dispatches exactly as
     ``run_policy`` trains it: feedback reaches it in the same order between its choices."""
-    from yafs_safetail.methods.registry import SAFETAIL
+    from yafs_safetail.methods.registry import SAFETAIL, method_rng
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
     from yafs_safetail.methods.safetail.presets import get_preset
     from yafs_safetail.methods.safetail.spaces import StateScales
-    from yafs_safetail.runs.workers import method_rng
 
     settings = {"users": 20, "load": 0.5, "n_requests": 600, "block_requests": 200, "queue": True,
                 "background": False, "phase": "train"}

@@ -194,11 +194,11 @@ def test_arrivals_from_a_trace_and_its_errors(tmp_path):
 
 
 @pytest.mark.parametrize(("changes", "message"), [
-    ({"users": 0}, "--users: expected a positive integer"),
+    ({"users": 0}, "^users: expected a positive integer"),
     ({"load": None}, "give one of them"),
-    ({"rate_per_user_hz": float("nan")}, "--rate-per-user: expected a positive number"),
-    ({"load": -1.0}, "--load: expected a positive number"),
-    ({"links": "both"}, "--links: expected one of shared, at-start, got 'both'"),
+    ({"rate_per_user_hz": float("nan")}, "^rate_per_user_hz: expected a positive number"),
+    ({"load": -1.0}, "^load: expected a positive number"),
+    ({"links": "both"}, "^links: expected one of shared, at-start, got 'both'"),
 ])
 def test_bad_settings_are_one_line(changes, message):
     with pytest.raises(ContentionError, match=message):
@@ -407,7 +407,7 @@ def test_feedback_records_carry_the_target_asked_for():
 def test_load_sweep_target_and_links_options(tmp_path):
     out = tmp_path / "sweep"
     done = sweep_here("--users", "10", "--loads", "0.5", "--steps-scale", "0.02", "--methods", "Oracle",
-                      "--target", "observed-load", "--links", "at-start", "--learner", "target-vector",
+                      "--target", "observed-load", "--links", "at-start", "--objectives", "target-vector",
                       "--out", str(out))
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
@@ -470,8 +470,8 @@ def test_both_safetails_are_checked_and_neither_is_a_fixed_method():
     assert "Each cell: SafeTail's p99" in report and "Each cell: SafeTail-CA's p99" in report
     assert "| 7 | 0.67 (Tied), 3.50 | 0.97 (Tied), 2.20 |" in report
     # The learners are named once each, from the two objectives.
-    with pytest.raises(ContentionError, match="learners"):
-        SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("value", "value"))
+    with pytest.raises(ContentionError, match="objectives"):
+        SweepConfig(base=ContentionConfig(), loads=(0.5,), objectives=("value", "value"))
     config = SweepConfig(base=ContentionConfig(), loads=(0.5,), preset="paper", dispatch="all")
     assert [(v.name, v.preset, v.dispatch) for v in config.safetails] == [
         ("SafeTail", "paper", "all"), ("SafeTail-CA", "paper", "all")]
@@ -493,7 +493,7 @@ def test_load_sweep_test_requests_option(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--test-requests: 50 test requests per load" in bad.stderr
     assert len(bad.stderr.splitlines()) == 1 and not (tmp_path / "b").exists()
-    with pytest.raises(ContentionError, match="test requests per load must be an integer >= 1"):
+    with pytest.raises(ContentionError, match="^test_requests_per_load: expected a positive integer, got 0$"):
         SweepConfig(base=ContentionConfig(), loads=(0.5,), test_requests_per_load=0)
 
 
@@ -649,7 +649,7 @@ def test_safetail_dispatch_and_value_reward_are_checked():
 def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
     out = tmp_path / "sweep"
     command = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.5", "--steps-scale", "0.02",
-               "--methods", "Tied", "--preset", "tuned", "--learner", "value", "--safetail-dispatch", "tied",
+               "--methods", "Tied", "--preset", "tuned", "--objectives", "value", "--safetail-dispatch", "tied",
                "--value-networks", "2", "--seed", "2", "--out", str(out)]
     done = sweep_here(*command[2:])
     assert done.returncode == 0, done.stderr
@@ -668,15 +668,15 @@ def test_load_sweep_value_learner_and_tied_dispatch(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "the value learner has its own reward" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
-    bad = subprocess.run([sys.executable, str(SWEEP), "--value-networks", "2", "--learner", "target-vector",
+    bad = subprocess.run([sys.executable, str(SWEEP), "--value-networks", "2", "--objectives", "target-vector",
                           "--out", str(tmp_path / "b")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--value-networks 2: only with the value learner" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()
     with pytest.raises(ContentionError, match="only the value learner averages networks"):
-        SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("target-vector",), value_networks=2)
+        SweepConfig(base=ContentionConfig(), loads=(0.5,), objectives=("target-vector",), n_networks=2)
     # Unless told, the value learner averages DEFAULT_VALUE_NETWORKS networks; §III's has one.
-    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("value",)).n_value_networks == 3
-    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), learners=("target-vector",)).n_value_networks == 1
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), objectives=("value",)).networks_averaged == 3
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,), objectives=("target-vector",)).networks_averaged == 1
 
 
 def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch):
@@ -704,7 +704,7 @@ def test_each_block_world_is_built_once_with_feedback_across_blocks(monkeypatch)
 @pytest.mark.slow  # several seeds of the sweep; test_load_sweep_small_budget runs the entry point
 def test_load_sweep_over_seeds(tmp_path):
     common = [sys.executable, str(SWEEP), "--users", "10", "--loads", "0.2,0.8", "--steps-scale", "0.02",
-              "--methods", "MinLoad-1,Tied", "--learner", "target-vector"]
+              "--methods", "MinLoad-1,Tied", "--objectives", "target-vector"]
     out = tmp_path / "seeds"
     done = subprocess.run([*common, "--seeds", "3,5", "--workers", "2", "--out", str(out)],
                           capture_output=True, text=True, timeout=600)

@@ -11,7 +11,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from yafs_safetail.contention.sweep import point_specs
 from yafs_safetail.contention.sweep_config import (
     DEFAULT_FAILURE_LOAD,
     FAILURE_POINT,
@@ -21,6 +20,7 @@ from yafs_safetail.contention.sweep_config import (
 from yafs_safetail.contention.sweep_report import failure_checks
 from yafs_safetail.contention.world import ContentionConfig, ContentionError
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S
+from yafs_safetail.runs.sweep_points import point_specs
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 FAILURE_SWEEP = REPOSITORY / "experiments" / "failure_sweep.py"
@@ -32,7 +32,7 @@ REQUIRED = ("method", "failure_level", "success_rate", "p99_s", "energy_j_per_re
 def test_failure_sweep_small_budget(tmp_path):
     out = tmp_path / "failures"
     command = [sys.executable, str(FAILURE_SWEEP), "--uc", "1", "--users", "10", "--failure-levels", "0.2,0",
-               "--steps-scale", "0.02", "--learner", "target-vector", "--methods", "Oracle,Rand-1,MinLoad-2,Tied",
+               "--steps-scale", "0.02", "--objectives", "target-vector", "--methods", "Oracle,Rand-1,MinLoad-2,Tied",
                # Short outages: the 400 requests span a few minutes, and each server should fail in them.
                "--mttr-s", "5", "--seed", "3", "--out", str(out)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=900)

@@ -1,7 +1,7 @@
 """--help and a bad argument answer before anything heavy loads (issue 30: within 0.3 s).
 
 Each case runs in a fresh interpreter and lists, at exit, which heavy libraries were imported.
-The run command's options come from runs.config, so this also guards that module's imports.
+The run command's options come from settings.experiment, so this also guards that module's imports.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ CASES = {
        for script in ("load_sweep", "failure_sweep", "training_mechanism")},
     "sweep --loads 0": (["yafs-safetail", "sweep", "--loads", "0", "--out", "unused"], 2),
     "load_sweep --links bogus": ([SWEEP_SCRIPT, "--links", "bogus", "--out", "unused"], 2),
-    "load_sweep --learner bogus": ([SWEEP_SCRIPT, "--learner", "bogus", "--out", "unused"], 2),
+    "load_sweep --objectives bogus": ([SWEEP_SCRIPT, "--objectives", "bogus", "--out", "unused"], 2),
     "load_sweep --safetail-dispatch bogus": ([SWEEP_SCRIPT, "--safetail-dispatch", "bogus", "--out", "unused"], 2),
     "failure-sweep --failure-levels 2": (["yafs-safetail", "failure-sweep", "--failure-levels", "2",
                                           "--out", "unused"], 2),

@@ -38,9 +38,9 @@ def test_without_failures_the_report_is_as_before():
 def test_the_heading_names_the_settings_a_run_changed():
     from pathlib import Path
 
-    from yafs_safetail.runs.config import ExperimentConfig
     from yafs_safetail.runs.provenance import titled_settings
-    from yafs_safetail.runs.settings import changed_settings
+    from yafs_safetail.settings.declare import changed_settings
+    from yafs_safetail.settings.experiment import ExperimentConfig
 
     assert changed_settings(ExperimentConfig(use_case=2, seed=7, steps_scale=0.1, figures=False), skip=titled_settings()) == ()
     changed = changed_settings(ExperimentConfig(failure_probability=0.2, topology=Path("t/mesh.json")),
@@ -54,7 +54,7 @@ def test_the_heading_names_the_settings_a_run_changed():
 
 
 def test_a_changed_setting_reads_the_same_in_any_run_and_any_folder():
-    from yafs_safetail.runs.settings import _shown
+    from yafs_safetail.settings.declare import _shown
 
     class UsersMethod:
         spec = "Mine=/some/where/policy.py:Cls"

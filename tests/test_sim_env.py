@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import yafs_safetail
 from yafs_safetail import results
-from yafs_safetail.methods.registry import SAFETAIL
+from yafs_safetail.methods.registry import SAFETAIL, method_rng
 from yafs_safetail.methods.safetail.learner import SafeTailLearner
 from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 from yafs_safetail.methods.safetail.spaces import (
@@ -24,8 +24,7 @@ from yafs_safetail.methods.safetail.spaces import (
 )
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.experiment import YAFS_DIR, ExperimentConfig, run_experiment
-from yafs_safetail.runs.workers import method_rng
-from yafs_safetail.runs.world_recipe import make_world
+from yafs_safetail.settings.world_recipe import make_world
 from yafs_safetail.sim.env import SafeTailEnv
 
 TINY = 0.02  # UC1: 200 training steps (within one α_s = 256 episode), 80 test steps

@@ -51,7 +51,7 @@ def test_more_windows_than_requests_gives_one_request_per_window():
 def test_the_command_writes_the_table_and_the_figure_and_refuses_a_foreign_folder(tmp_path):
     out = tmp_path / "mechanism"
     done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "training_mechanism.py"), "--uc", "1",
-                           "--users", "10", "--loads", "0.2,0.8", "--learner", "target-vector", "--steps-scale",
+                           "--users", "10", "--loads", "0.2,0.8", "--objectives", "target-vector", "--steps-scale",
                            "0.01", "--windows", "4", "--seed", "3", "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]

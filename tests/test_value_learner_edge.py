@@ -1,4 +1,4 @@
-"""The value learner in the single-user world (``--learner value``): what it regresses with the
+"""The value learner in the single-user world (``--objective value``): what it regresses with the
 D15 prices, its options, and a small run (docs/deviations.md D13, D15)."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.safetail.presets import get_preset
 from yafs_safetail.methods.safetail.reward import copy_price, latency_score, priced_latency_score
 from yafs_safetail.record import RequestRecord
-from yafs_safetail.runs.config import ExperimentConfig, learner_config
+from yafs_safetail.settings.experiment import ExperimentConfig, learner_config
 
 ROOT = Path(__file__).resolve().parents[1]
 N_SERVERS = 5
@@ -98,7 +98,7 @@ def _run_usecase(*args: str, out: Path) -> subprocess.CompletedProcess[str]:
 
 @pytest.mark.parametrize(("args", "expected"), [
     (("--energy-price-per-j", "-0.01"), "--energy-price-per-j: expected a non-negative number"),
-    (("--learner", "q-table"), "--learner: invalid choice: 'q-table'"),
+    (("--objective", "q-table"), "--objective: invalid choice: 'q-table'"),
     (("--value-networks", "0"), "--value-networks: expected a positive integer"),
     (("--value-networks", "3"), "--value-networks 3: only the value learner averages networks"),
 ])
@@ -113,7 +113,7 @@ def test_a_bad_learner_option_is_one_line(tmp_path, args, expected):
 def test_run_usecase_with_the_value_learner_and_a_price(tmp_path):
     out = tmp_path / "out"
     done = run_usecase_here("--uc", "1", "--seed", "3", "--steps-scale", "0.03", "--failure-probability", "0.3",
-                            "--learner", "value", "--energy-price-per-j", "0.05", "--no-figures", "--quiet", "--out", out)
+                            "--objective", "value", "--energy-price-per-j", "0.05", "--no-figures", "--quiet", "--out", out)
     assert done.returncode == 0, done.stderr[-2000:]
     for name in ("requests.csv", "summary.csv", "summary.md", "run.json", "policy.keras"):
         assert (out / name).is_file(), name

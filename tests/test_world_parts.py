@@ -1,4 +1,5 @@
-"""What every world is drawn from (edge.world_parts): one draw, one way to apply overrides."""
+"""What every world is drawn from (edge.world_parts): one draw; one way to apply overrides
+(settings.world)."""
 
 from __future__ import annotations
 
@@ -9,19 +10,9 @@ import pytest
 
 from yafs_safetail.edge.calibration import CALIBRATED_V1, LANDED
 from yafs_safetail.edge.world import build_world
-from yafs_safetail.edge.world_parts import (
-    WorldOverrideError,
-    WorldParts,
-    apply_world_overrides,
-)
-
-
-@dataclasses.dataclass(frozen=True)
-class _Overrides:
-    target_latency_s: float | None = None
-    load_peak_users: float | None = None
-    target_compute: str | None = None
-    baseline_reading: str | None = None
+from yafs_safetail.edge.world_parts import WorldParts
+from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
+from yafs_safetail.settings.world import WorldOverrides as _Overrides
 
 
 def test_draw_is_build_world_with_the_parts_settings(uc1):
@@ -62,14 +53,14 @@ def test_the_contention_world_takes_the_experiments_world_overrides():
     plain = ContentionWorld(base, world.inputs, world.scenario)
     assert plain.settings == CALIBRATED_V1
     np.testing.assert_array_equal(plain.emit_s, world.emit_s)  # the arrivals do not move
-    with pytest.raises(ContentionError, match="^load_peak_users: -1.0 is out of range$"):
+    with pytest.raises(ContentionError, match="^load_peak_users: expected a non-negative number, got -1.0$"):
         ContentionWorld(dataclasses.replace(base, load_peak_users=-1.0), world.inputs, world.scenario)
 
 
 def test_a_sweep_point_records_the_world_overrides_only_when_set():
     from yafs_safetail.contention.config import ContentionConfig
-    from yafs_safetail.contention.sweep import point_specs
     from yafs_safetail.contention.sweep_config import SweepConfig
+    from yafs_safetail.runs.sweep_points import point_specs
 
     plain = SweepConfig(base=ContentionConfig(users=10), loads=(0.5,))
     assert not {"target_latency_s", "load_peak_users", "target_compute"} & set(plain.point_settings(0.5))

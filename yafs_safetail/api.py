@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from yafs_safetail.defaults import default_placement
-from yafs_safetail.runs.config import ExperimentConfig, check_config
+from yafs_safetail.settings.declare import check_config
+from yafs_safetail.settings.experiment import ExperimentConfig
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -53,7 +54,7 @@ class ApiError(ValueError):
 #: ``methods``), and what it sets itself (the call it records as the command; a campaign's id).
 _SET_BY_RUN = ("command", "run_id", "methods", "out_dir", "use_case")
 #: Every keyword :func:`run` takes besides ``use_case``, ``out_dir`` and ``methods``: the fields of
-#: ``runs.config.ExperimentConfig`` (docs/usage.md lists them as options).
+#: ``settings.experiment.ExperimentConfig`` (docs/usage.md lists them as options).
 SETTINGS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ExperimentConfig)
                                   if f.name not in _SET_BY_RUN)
 
@@ -123,7 +124,7 @@ def run(use_case: int = 1, *, out_dir: str | os.PathLike[str] | None = None,
         methods: your own policies beside the built-in ones: ``Policy`` subclasses (defined at the
             top level of a module or notebook), ``"file.py:Class"`` or ``"module:Class"`` specs
             (``"NAME=file.py:Class"`` names it in the results).
-        **settings: any of :data:`SETTINGS` (``runs.config.ExperimentConfig``'s fields:
+        **settings: any of :data:`SETTINGS` (``settings.experiment.ExperimentConfig``'s fields:
             ``seed``, ``preset``, ``steps_scale``, ``redundancy_levels``, ``topology``,
             ``figures``, ``workers``, ``overwrite``, ``target_latency_s``...), checked as the
             command checks its options. ``placement`` defaults to the topology's.

@@ -18,23 +18,35 @@ import threading
 from collections.abc import Callable, Sequence
 from contextvars import ContextVar
 from pathlib import Path
-from types import FrameType
 from typing import Any, NoReturn
 
 from yafs_safetail import __version__
 from yafs_safetail.logs import configure_logging, verbosity_level
 
+# The argument types and the SIGTERM handling live below every package (the library imports them
+# from there, never from here); the commands and the scripts outside the package import them
+# from here too.
+from yafs_safetail.settings.parse import (  # noqa: F401  (re-exported)
+    distinct_int_list,
+    int_list,
+    load_list,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    positive_float_list,
+    positive_int,
+    user_path,
+)
+from yafs_safetail.stopping import (  # noqa: F401  (re-exported)
+    Terminated,
+    clear_terminating,
+    raise_terminated,
+    terminating,
+)
+
 EXIT_BAD_INPUT = 2
 EXIT_TERMINATED = 128 + signal.SIGTERM
 EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an exception so that every ``finally`` runs: workers stop and
-    temporary folders go, exactly as for Ctrl-C."""
-
-
-_terminating = threading.Event()
 
 
 class UsageError(ValueError):
@@ -50,15 +62,6 @@ _command_prog: ContextVar[str | None] = ContextVar("yafs_safetail_command_prog",
 VERSION_LINE = f"yafs-safetail {__version__}"
 
 
-def user_path(text: str) -> Path:
-    """An argparse type for every path option: ``~`` and ``~user`` expanded, as a shell would.
-
-    A shell leaves ``~`` alone when it is quoted or follows ``=`` (``--out=~/x``); without this
-    the run would create a folder named ``~`` in the working folder.
-    """
-    return Path(text).expanduser()
-
-
 class ArgumentParser(argparse.ArgumentParser):
     """argparse that reports bad arguments as :func:`run_cli`'s one-line error (exit 2, no
     usage dump), for every entry point.
@@ -67,7 +70,7 @@ class ArgumentParser(argparse.ArgumentParser):
     (``yafs-safetail run``) instead of the script's own ``prog``, since that is what the user
     typed; run directly, a script keeps its own name. Every parser with ``--help`` also has
     ``--version``, and an option declared with ``type=Path`` (by hand or by
-    ``runs.config.add_options``) reads its value through :func:`user_path`.
+    ``settings.declare.add_options``) reads its value through :func:`user_path`.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -87,89 +90,22 @@ class ArgumentParser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def positive_float(text: str) -> float:
-    """An argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not value > 0 or value == float("inf"):  # also refuses nan
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
+#: Options that are not settings: where a command writes, what it reads besides its settings and
+#: how many processes it uses, never what it computes. A setting's option comes from its
+#: declaration (``settings.declare.add_options``), never from here (tests/test_option_sources.py).
+PLUMBING_FLAGS = ("--out", "--overwrite", "--grid", "--apply", "--workers")
 
 
-def non_negative_float(text: str) -> float:
-    """An argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text!r}") from None
-    if not value >= 0 or value == float("inf"):  # also refuses nan
-        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text!r}")
-    return value
+def add_plumbing(parser: argparse._ActionsContainer, flag: str, **keywords: Any) -> None:
+    """Add one option that is not a setting (:data:`PLUMBING_FLAGS`, or a positional input such as
+    a results folder).
 
-
-def _integer(text: str, smallest: int, what: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a {what} integer, got {text!r}") from None
-    if value < smallest:
-        raise argparse.ArgumentTypeError(f"expected a {what} integer, got {text!r}")
-    return value
-
-
-def positive_int(text: str) -> int:
-    """An argparse type: an integer >= 1."""
-    return _integer(text, 1, "positive")
-
-
-def non_negative_int(text: str) -> int:
-    """An argparse type: an integer >= 0 (a seed)."""
-    return _integer(text, 0, "non-negative")
-
-
-def int_list(text: str) -> tuple[int, ...]:
-    """An argparse type: comma-separated non-negative integers, at least one."""
-    try:
-        values = tuple(int(part) for part in text.split(",") if part.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
-    if not values or min(values) < 0:
-        raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
-    return values
-
-
-def positive_float_list(text: str) -> tuple[float, ...]:
-    """An argparse type: distinct positive numbers, comma-separated, returned ascending."""
-    try:
-        values = tuple(positive_float(part) for part in text.split(","))
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated positive numbers, got {text!r}") from None
-    if len(set(values)) != len(values):
-        raise argparse.ArgumentTypeError(f"expected distinct numbers, got {text!r}")
-    return tuple(sorted(values))
-
-
-def load_list(text: str) -> tuple[float, ...]:
-    """An argparse type: distinct offered loads in (0, 10), comma-separated, returned ascending."""
-    try:
-        loads = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
-    if not loads or any(not 0 < load < 10 for load in loads) or len(set(loads)) != len(loads):
-        raise argparse.ArgumentTypeError(f"expected distinct loads in (0, 10), got {text!r}")
-    return tuple(sorted(loads))
-
-
-def distinct_int_list(text: str) -> tuple[int, ...]:
-    """:func:`int_list` with no value given twice (a repeated seed would count twice)."""
-    values = int_list(text)
-    repeated = sorted({v for v in values if values.count(v) > 1})
-    if repeated:
-        raise argparse.ArgumentTypeError(
-            f"{repeated[0]} is given twice in {text!r}; a repeated seed would count twice")
-    return values
+    Raises:
+        TypeError: any other option: a setting is declared (``settings.declare.setting``).
+    """
+    if flag.startswith("-") and flag not in PLUMBING_FLAGS:
+        raise TypeError(f"{flag}: not a plumbing option; declare it as a setting (settings.declare)")
+    parser.add_argument(flag, **keywords)
 
 
 def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
@@ -210,12 +146,6 @@ def configure_verbosity(args: argparse.Namespace) -> int:
     return level
 
 
-def raise_terminated(signum: int, frame: FrameType | None) -> None:
-    """The SIGTERM handler of every process of a run (the command's and its workers')."""
-    _terminating.set()
-    raise Terminated()
-
-
 def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[str] | None = None) -> int:
     """Run ``main(argv)`` and turn input errors into one line on stderr and exit code 2.
 
@@ -231,7 +161,7 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, raise_terminated)
-    _terminating.clear()
+    clear_terminating()
     try:
         code = main(argv)
     except BrokenPipeError:
@@ -246,7 +176,7 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
         # interrupted by it becomes an ImportError): the flag says what really happened.
         # A note added on the way out (a run's kept training checkpoint) ends the same line.
         notes = "".join(f"; {note}" for note in getattr(error, "__notes__", ()))
-        if isinstance(error, Terminated) or _terminating.is_set():
+        if isinstance(error, Terminated) or terminating():
             print(f"error: terminated; no partial results were kept{notes}", file=sys.stderr)
             return EXIT_TERMINATED
         if isinstance(error, KeyboardInterrupt):

@@ -71,11 +71,6 @@ TARGET_COMPUTES = ("trace_median", "request")
 BASELINE_READINGS = ("paper-text", "original-code")
 #: How many servers the original code's MinLoad-x and MinProp-x drew before sorting.
 ORIGINAL_CODE_CANDIDATES = 3
-#: The world's settings (``edge.calibration.WorldSettings`` fields) a run may override: the
-#: experiment's options and the contention world's fields of these names, applied to the world
-#: by ``edge.world_parts.apply_world_overrides``.
-WORLD_OVERRIDES: tuple[str, ...] = ("target_latency_s", "load_peak_users", "target_compute",
-                                     "baseline_reading")
 #: Simulated time between two requests: one load-trace row (one minute) per step.
 DEFAULT_STEP_INTERVAL_S = 60.0
 

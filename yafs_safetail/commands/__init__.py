@@ -4,7 +4,7 @@ that only read results folders, ``figures`` and ``feasibility``, run as
 ``python -m yafs_safetail.commands.<module>`` instead).
 
 Each module reads top to bottom: its options, their checks, then the work. Only light modules
-(the standard library, ``cli``, ``defaults``, ``runs.config``) are imported before the arguments
+(the standard library, ``cli``, ``defaults``, ``settings``) are imported before the arguments
 are checked where the command's options allow it, so that ``--help`` and a bad argument answer
 at once.
 """

@@ -24,9 +24,9 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
-    int_list,
     invocation,
     positive_int,
     print_result,
@@ -36,24 +36,26 @@ from yafs_safetail.runs.engine_options import (
     default_workers_help,
     local_workers,
 )
+from yafs_safetail.settings.declare import add_list_options
+from yafs_safetail.settings.experiment import ExperimentConfig
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="calibrate.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", type=int_list, default=None,
-                        help="world-calibration seeds (default: seed_sets.json's, 1000-1009)")
-    parser.add_argument("--grid", type=Path, default=None,
-                        help="a JSON file mapping each parameter (load_start, load_peak_users, "
+    add_list_options(parser, ExperimentConfig, {"seed": "--seeds"},
+                     seed={"help": "world-calibration seeds (default: seed_sets.json's, 1000-1009)"})
+    add_plumbing(parser, "--grid", type=Path, default=None,
+                 help="a JSON file mapping each parameter (load_start, load_peak_users, "
                              "bandwidth_share_exponent, fallback_compute_multiple) to its values "
                              "(default: the shipped grid; calibration in the documentation)")
-    parser.add_argument("--workers", type=positive_int, default=None,
-                        help=f"parallel processes (default: {default_workers_help(CALIBRATION_WORKER_BYTES)}; "
+    add_plumbing(parser, "--workers", type=positive_int, default=None,
+                 help=f"parallel processes (default: {default_workers_help(CALIBRATION_WORKER_BYTES)}; "
                              "the result does not depend on it)")
-    parser.add_argument("--out", type=Path, default=Path("results/calibration"),
-                        help="output folder (default results/calibration)")
-    parser.add_argument("--apply", action="store_true",
-                        help="install the result as the package's edge/calibration.json")
+    add_plumbing(parser, "--out", type=Path, default=Path("results/calibration"),
+                 help="output folder (default results/calibration)")
+    add_plumbing(parser, "--apply", action="store_true",
+                 help="install the result as the package's edge/calibration.json")
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)

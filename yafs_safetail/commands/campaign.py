@@ -29,6 +29,7 @@ from pathlib import Path
 from yafs_safetail.cli import (
     EXIT_BAD_INPUT,
     ArgumentParser,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
     invocation,
@@ -40,10 +41,10 @@ from yafs_safetail.runs.engine_options import add_engine_options, engine_free_co
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="campaign.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--grid", type=Path, required=True, help="the grid file (.toml, .yaml, .json)")
-    parser.add_argument("--out", type=Path, required=True, help="the campaign folder")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace run folders that hold another configuration")
+    add_plumbing(parser, "--grid", type=Path, required=True, help="the grid file (.toml, .yaml, .json)")
+    add_plumbing(parser, "--out", type=Path, required=True, help="the campaign folder")
+    add_plumbing(parser, "--overwrite", action="store_true",
+                 help="replace run folders that hold another configuration")
     add_engine_options(parser)
     add_verbosity_options(parser)
     args = parser.parse_args(argv)

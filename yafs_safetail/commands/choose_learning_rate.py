@@ -21,18 +21,17 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
-    UsageError,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
-    int_list,
     invocation,
-    positive_float,
-    positive_float_list,
     positive_int,
     print_result,
 )
 from yafs_safetail.defaults import LEARNING_RATE_GRID as RATE_GRID
 from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.settings.declare import add_list_options, add_options
+from yafs_safetail.settings.experiment import ExperimentConfig
 
 # The runner (pandas, the simulator, TensorFlow behind it) is imported after the options are
 # read, so --help and a bad option answer at once (issue 30).
@@ -41,22 +40,19 @@ from yafs_safetail.edge.published import USE_CASES
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="choose_learning_rate.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=int_list, default=USE_CASES, help="use cases (default 1,2,3)")
-    parser.add_argument("--seeds", type=int_list, default=None,
-                        help="learner-calibration seeds (default: seed_sets.json's, 1000-1002)")
-    parser.add_argument("--rates", type=positive_float_list, default=RATE_GRID,
-                        help="the candidate rates (default the rule's grid: "
-                             + ",".join(f"{r:g}" for r in RATE_GRID) + "; another grid is not the rule)")
-    parser.add_argument("--steps-scale", type=positive_float, default=1.0,
-                        help="fraction of the full budget (default 1: the rule as written)")
-    parser.add_argument("--workers", type=positive_int, default=2, help="parallel runs (default 2)")
-    parser.add_argument("--out", type=Path, default=Path("results/learning-rate"),
-                        help="output folder (default results/learning-rate)")
+    add_list_options(parser, ExperimentConfig, {"use_case": "--uc", "seed": "--seeds"},
+                     use_case={"default": USE_CASES, "help": "use cases (default 1,2,3)"},
+                     seed={"help": "learner-calibration seeds (default: seed_sets.json's, 1000-1002)"})
+    add_list_options(parser, ExperimentConfig, {"learning_rate": "--rates"}, ascending=True,
+                     learning_rate={"default": RATE_GRID, "help": "the candidate rates (default the rule's grid: "
+                                    + ",".join(f"{r:g}" for r in RATE_GRID) + "; another grid is not the rule)"})
+    add_options(parser, ExperimentConfig, only=("steps_scale",),
+                steps_scale={"help": "fraction of the full budget (default 1: the rule as written)"})
+    add_plumbing(parser, "--workers", type=positive_int, default=2, help="parallel runs (default 2)")
+    add_plumbing(parser, "--out", type=Path, default=Path("results/learning-rate"),
+                 help="output folder (default results/learning-rate)")
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
-    bad = [uc for uc in args.uc if uc not in USE_CASES]
-    if bad:
-        raise UsageError(f"--uc: {bad[0]} is not a use case (1, 2 or 3)")
     from yafs_safetail.runs.learning_rate import (
         LearningRateConfig,
         choose_learning_rates,

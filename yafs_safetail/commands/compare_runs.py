@@ -18,11 +18,13 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
-    non_negative_int,
     print_result,
 )
+from yafs_safetail.settings.declare import add_options
+from yafs_safetail.settings.experiment import ExperimentConfig
 
 log = logging.getLogger(__name__)
 
@@ -30,10 +32,10 @@ log = logging.getLogger(__name__)
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="compare_runs.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("run_a", type=Path, help="results folder A")
-    parser.add_argument("run_b", type=Path, help="results folder B")
-    parser.add_argument("--out", type=Path, default=None, help="write compare.csv and compare.png into this new folder")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="bootstrap seed (default 0)")
+    add_plumbing(parser, "run_a", type=Path, help="results folder A")
+    add_plumbing(parser, "run_b", type=Path, help="results folder B")
+    add_plumbing(parser, "--out", type=Path, default=None, help="write compare.csv and compare.png into this new folder")
+    add_options(parser, ExperimentConfig, only=("seed",), seed={"help": "bootstrap seed (default 0)"})
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)

@@ -8,7 +8,7 @@ down that rises through --failure-levels (default 0,0.05,0.1,0.2,0.3; 0 is the w
 failures). A copy on a server that is down, or that goes down before its reply has left, is
 lost: the user hears nothing and takes the on-device fallback after its time-out (--timeout-s,
 default the world's worst-case latency of a live uncontended copy). Both SafeTails (the paper's,
-and SafeTail-CA unless --learner says otherwise) are trained at each level and tested greedily;
+and SafeTail-CA unless --objectives says otherwise) are trained at each level and tested greedily;
 Oracle, Rand/MinLoad/MinProp with x = 1, 2, 3, Hedge and Tied run on the same test world.
 
 Writes OUT/failure_sweep.csv (one row per level and method: failure_level, load, method,
@@ -34,10 +34,9 @@ from yafs_safetail.cli import (
     ArgumentParser,
     configure_verbosity,
     invocation,
-    non_negative_int,
     print_result,
 )
-from yafs_safetail.commands.load_sweep import (
+from yafs_safetail.commands.sweeps import (
     LEARNER_OPTIONS,
     add_output_options,
     add_users_options,
@@ -45,14 +44,17 @@ from yafs_safetail.commands.load_sweep import (
     check_methods,
     check_out,
     check_test_requests,
+    check_value_networks,
     contention_base,
     run_points,
     safetail_lines,
+    servers_word,
     sweep_run_json,
 )
+from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.sweep_config import FailureSweepConfig
-from yafs_safetail.runs.config import add_options, config_from_args
 from yafs_safetail.runs.engine_options import engine_free_command
+from yafs_safetail.settings.declare import add_options, config_from_args
 
 #: run.json's kind of a failure sweep's folder.
 FAILURE_SWEEP_KIND = "failure_sweep"
@@ -64,23 +66,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_users_options(parser)
     # The sweep's own settings, each declared once in contention.sweep_config.FailureSweepConfig.
     add_options(parser, FailureSweepConfig, only=("failure_levels", "load", "mttr_s", "timeout_s"))
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    add_options(parser, ContentionConfig, only=("seed",))
     add_options(parser, FailureSweepConfig, only=LEARNER_OPTIONS)
     add_world_options(parser)
     add_output_options(parser, FailureSweepConfig)
     args = parser.parse_args(argv)
     configure_verbosity(args)
     # The arguments are checked: now the sweep and its report, with NumPy and pandas.
-    from yafs_safetail.contention.sweep import point_specs
     from yafs_safetail.contention.sweep_report import (
         FAILURE_REPORT,
         checks_markdown,
         failure_checks,
     )
+    from yafs_safetail.runs.sweep_points import point_specs
 
-    check_methods(args)
+    check_value_networks(args)
     config: FailureSweepConfig = config_from_args(args, FailureSweepConfig, base=contention_base(args, args.seed))
+    check_methods(config)
     check_test_requests(args, config)
+    base = config.base
     command = engine_free_command(invocation("experiments/failure_sweep.py"),
                                   sys.argv[1:] if argv is None else argv)
     out = Path(args.out)
@@ -90,14 +94,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if frames is None:
         return 1
     frame = frames[config.base.seed]
-    heading = (f"Failure sweep (use case {args.uc}, {args.users} users, load {config.load:g}, mean repair "
-               f"{config.mttr_s:g} s, {args.servers}, {args.links} links, seed {config.base.seed})")
+    heading = (f"Failure sweep (use case {base.use_case}, {base.users} users, load {config.load:g}, mean repair "
+               f"{config.mttr_s:g} s, {servers_word(base)}, {base.links} links, seed {base.seed})")
     timeout = (f"a time-out of {config.timeout_s:g} s" if config.timeout_s is not None
                else "the default time-out (the world's worst-case latency of a live uncontended copy)")
     preface = (f"Each server down with the stationary probability `failure_level`; a lost copy is known "
                f"only by {timeout}; level 0 has no failures and no time-out.\n\n")
     FAILURE_REPORT.write(out, frame, heading, preface + safetail_lines(config) + f"`{command}`\n\n",
-                         sweep_run_json(args, config, command, FAILURE_SWEEP_KIND, specs[config.base.seed],
+                         sweep_run_json(config, command, FAILURE_SWEEP_KIND, specs[config.base.seed],
                                         failure_levels=list(config.points), load=config.load,
                                         mttr_s=config.mttr_s, timeout_s=config.timeout_s))
     print_result(args, out, f"{FAILURE_REPORT.glance(frame)}\n{checks_markdown(frame, failure_checks)}\n"

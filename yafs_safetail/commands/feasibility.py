@@ -13,7 +13,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from yafs_safetail.cli import ArgumentParser, add_verbosity_options, configure_verbosity, run_script
+from yafs_safetail.cli import (
+    ArgumentParser,
+    add_plumbing,
+    add_verbosity_options,
+    configure_verbosity,
+    run_script,
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -25,7 +31,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "percentile, read from Oracle's and the baselines' latencies and the "
                     "targets alone.",
     )
-    parser.add_argument("directories", metavar="DIR", nargs="+", help="results folders of runs")
+    add_plumbing(parser, "directories", metavar="DIR", nargs="+", help="results folders of runs")
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)

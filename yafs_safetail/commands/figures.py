@@ -14,12 +14,14 @@ from pathlib import Path
 
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
     print_result,
     run_script,
 )
-from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS, figure_formats
+from yafs_safetail.settings.declare import add_options
+from yafs_safetail.settings.experiment import ExperimentConfig
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -28,17 +30,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         description="Redraw the paper's Figs. 5-7 (a)-(g), p99_vs_energy and latency_cdf from a results folder "
                     "(requests.csv and run.json) into DIR/figures.",
     )
-    parser.add_argument("directory", metavar="DIR", help="results folder of one run")
-    parser.add_argument("--figure-format", type=figure_formats, default=DEFAULT_FIGURE_FORMATS,
-                        metavar="FORMATS",
-                        help="comma-separated: png, pdf or both (default: png)")
+    add_plumbing(parser, "directory", metavar="DIR", help="results folder of one run")
+    add_options(parser, ExperimentConfig, only=("figure_formats",))
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)
     # The arguments are checked: now the folder, with pandas and matplotlib.
     from yafs_safetail.results.figures.run_figures import FIGURES_DIR, draw_figures
 
-    written = draw_figures(args.directory, formats=args.figure_format)
+    written = draw_figures(args.directory, formats=args.figure_formats)
     folder = Path(args.directory) / FIGURES_DIR
     print_result(args, folder, f"wrote {len(written)} files to {folder}")
     return 0

@@ -50,30 +50,21 @@ from pathlib import Path
 # Light modules only until the arguments are checked (--help answers at once).
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
-    distinct_int_list,
     invocation,
     print_result,
 )
-from yafs_safetail.defaults import PRESET_NAMES
 from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.runs.config import (
+from yafs_safetail.runs.engine_options import add_engine_options
+from yafs_safetail.settings.declare import add_list_options, add_options, field_of, setting_of
+from yafs_safetail.settings.experiment import (
+    ExperimentConfig,
     ExperimentError,
     LearnerOverrides,
     Task,
-    add_options,
-    setting_of,
 )
-from yafs_safetail.runs.engine_options import add_engine_options
-
-
-def _presets(text: str) -> tuple[str, ...]:
-    names = tuple(part.strip() for part in text.split(",") if part.strip())
-    unknown = [n for n in names if n not in PRESET_NAMES]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(f"unknown preset(s) {unknown}; valid: {', '.join(PRESET_NAMES)}")
-    return names
 
 
 def _check_methods(specs: Sequence[str]) -> None:
@@ -84,7 +75,7 @@ def _check_methods(specs: Sequence[str]) -> None:
         ExperimentError: two policies with one name (a file or class that cannot be loaded
             raises the registry's PolicyError, also one line).
     """
-    load = setting_of(next(f for f in dataclasses.fields(Task) if f.name == "methods")).from_cli
+    load = setting_of(field_of(Task, "methods")).from_cli
     names = [method.name for method in (load(specs) if load is not None else ())]
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
@@ -94,34 +85,32 @@ def _check_methods(specs: Sequence[str]) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="reproduce_all.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=distinct_int_list, default=USE_CASES, help="use cases (default: all)")
-    parser.add_argument("--seeds", type=distinct_int_list, default=(0, 1, 2, 3, 4),
-                        help="distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)")
-    parser.add_argument("--preset", type=_presets, default=("paper",),
-                        help="preset(s), comma-separated (default paper)")
-    parser.add_argument("--out", type=Path, default=Path("results/reproduce"),
-                        help="output folder (default results/reproduce)")
-    # The settings every run shares, each declared once in runs.config (its type, check and
+    # Several values of a run's settings: each read and checked as the run command's option.
+    add_list_options(parser, ExperimentConfig, {"use_case": "--uc", "seed": "--seeds", "preset": "--preset"},
+                     use_case={"default": USE_CASES, "help": "use cases (default: all)"},
+                     seed={"default": (0, 1, 2, 3, 4),
+                           "help": "distinct seeds (default 0,1,2,3,4; the scorecard wants five or more)"},
+                     preset={"default": ("paper",), "help": "preset(s), comma-separated (default paper)"})
+    add_plumbing(parser, "--out", type=Path, default=Path("results/reproduce"),
+                 help="output folder (default results/reproduce)")
+    # The settings every run shares, each declared once in settings.experiment (its type, check and
     # default); the help says what they mean for the whole reproduction.
-    add_options(parser, only=("steps_scale", "target_compute"),
+    add_options(parser, ExperimentConfig, only=("steps_scale", "target_compute"),
                 steps_scale={"help": "fraction of each preset's steps (default 1)"},
                 target_compute={"help": "C(s_j) of Eq. 4 for every run (default: each preset world's; "
                                         "deviation D11 in the documentation)"})
     add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
                 learning_rate={"help": "Adam's learning rate for every run instead of each preset's (the "
                                        "report then says these are not the presets' results)"})
-    add_options(parser, only=("methods",),
+    add_options(parser, ExperimentConfig, only=("methods",),
                 methods={"help": "add your own Policy to every run and to the report (also "
                                  "module:Class; repeatable; named after the class unless NAME= is given)"})
-    add_options(parser, only=("figures", "figure_formats"), figures={"help": "skip the per-run figures"})
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace run folders in --out that hold another configuration")
+    add_options(parser, ExperimentConfig, only=("figures", "figure_formats"), figures={"help": "skip the per-run figures"})
+    add_plumbing(parser, "--overwrite", action="store_true",
+                 help="replace run folders in --out that hold another configuration")
     add_engine_options(parser)
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
-    bad = [uc for uc in args.uc if uc not in USE_CASES]
-    if bad:
-        raise ExperimentError(f"--uc: unknown use case(s) {bad}; valid: 1, 2, 3")
     configure_verbosity(args)
     # The arguments are checked: now the campaign and the report, with NumPy and pandas.
     _check_methods(args.methods)

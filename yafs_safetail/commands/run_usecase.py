@@ -44,9 +44,10 @@ from yafs_safetail.cli import (
 from yafs_safetail.defaults import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.topology_io import ScenarioError
 from yafs_safetail.logs import is_terminal
-from yafs_safetail.runs.config import ExperimentConfig, add_options, config_from_args
+from yafs_safetail.settings.declare import add_options, config_from_args
+from yafs_safetail.settings.experiment import ExperimentConfig
 
-#: The run's options in the order --help lists them (each declared once, in runs.config).
+#: The run's options in the order --help lists them (each declared once, in settings.experiment).
 OPTIONS = ("use_case", "preset", "seed", "out_dir", "force", "overwrite", "resume", "checkpoint_every_s",
            "steps_scale", "redundancy_levels", "topology", "placement", "methods", "policy",
            "step_interval_s", "target_latency_s", "load_peak_users", "target_compute", "baseline_reading",
@@ -57,7 +58,7 @@ OPTIONS = ("use_case", "preset", "seed", "out_dir", "force", "overwrite", "resum
 def _parser() -> ArgumentParser:
     parser = ArgumentParser(prog="run_usecase.py", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_options(parser, only=OPTIONS,
+    add_options(parser, ExperimentConfig, only=OPTIONS,
                 use_case={"required": True},
                 out_dir={"default": None,
                          "help": "results folder (default results/uc<N>-<preset>-s<seed>, with "
@@ -66,13 +67,9 @@ def _parser() -> ArgumentParser:
                                  "-x<scale> after the seed with --steps-scale, and +<name> at the "
                                  "end for each --method); never replaced unless --overwrite"},
                 placement={"default": None})
-    yafs_csv = parser.add_mutually_exclusive_group()
-    add_options(yafs_csv, only=("write_yafs_csv",))
-    yafs_csv.add_argument("--no-yafs-csv", action="store_true",
-                          help="do not write the YAFS CSVs (the default; kept for older scripts)")
-    add_options(parser, only=("figures",))
-    # Any other setting with an option (a learner hyperparameter added to runs.config) too.
-    add_options(parser, exclude=(*OPTIONS, "write_yafs_csv", "figures"))
+    add_options(parser, ExperimentConfig, only=("write_yafs_csv", "figures"))
+    # Any other setting with an option (a learner hyperparameter added to settings.experiment) too.
+    add_options(parser, ExperimentConfig, exclude=(*OPTIONS, "write_yafs_csv", "figures"))
     add_verbosity_options(parser)
     return parser
 
@@ -124,7 +121,7 @@ def _config(args: argparse.Namespace, argv: Sequence[str] | None) -> ExperimentC
                                 "pass --placement with the placement JSON of that topology")
     command = shlex.join([*invocation("experiments/run_usecase.py"), *(sys.argv[1:] if argv is None else argv)])
     config: ExperimentConfig = config_from_args(
-        args, placement=placement, out_dir=args.out_dir or default_out_dir(args), command=command,
+        args, ExperimentConfig, placement=placement, out_dir=args.out_dir or default_out_dir(args), command=command,
         # Bars only where someone watches; elsewhere the phases' 10% lines say the same.
         progress=not args.quiet and is_terminal(sys.stderr))
     if args.out_dir is None and config.methods:  # their names are known once they are loaded

@@ -18,42 +18,50 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 # Light modules only until the arguments are checked (--help answers at once); the training and
 # its figure, with NumPy, pandas and TensorFlow behind them, are imported in main.
 from yafs_safetail.cli import (
     ArgumentParser,
+    add_plumbing,
     add_verbosity_options,
     configure_verbosity,
     invocation,
-    non_negative_int,
-    positive_int,
     print_result,
 )
+from yafs_safetail.commands.sweeps import add_users_options, add_world_options, contention_base
 from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.sweep_config import SweepConfig
-from yafs_safetail.runs.config import add_options, config_from_args
+from yafs_safetail.settings.declare import POSITIVE_INTEGER, add_options, config_from_args, setting
 
 #: Windows of training per load (contention.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).
 DEFAULT_WINDOWS = 20
 MECHANISM_KIND = "training_mechanism"
 
 
+@dataclass(frozen=True)
+class Measurement:
+    """How the training is watched (the command's one setting beside the sweep's)."""
+
+    windows: int = setting(DEFAULT_WINDOWS, f"windows of training per load (default {DEFAULT_WINDOWS})",
+                           check=POSITIVE_INTEGER)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="training_mechanism.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--uc", type=int, choices=(1, 2, 3), default=1, help="use case (default 1)")
-    parser.add_argument("--users", type=positive_int, default=50, help="users U (default 50)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+    add_users_options(parser)
+    add_options(parser, ContentionConfig, only=("seed",))
     # The load sweep's own settings, declared once in contention.sweep_config.SweepConfig.
-    add_options(parser, SweepConfig, only=("loads", "steps_scale", "preset", "reward", "target", "learners",
-                                           "value_networks", "dispatch"))
-    parser.add_argument("--windows", type=positive_int, default=DEFAULT_WINDOWS,
-                        help=f"windows of training per load (default {DEFAULT_WINDOWS})")
-    parser.add_argument("--out", type=Path, required=True, help="new output folder")
-    parser.add_argument("--overwrite", action="store_true", help="replace an earlier mechanism folder there")
+    add_options(parser, SweepConfig, only=("loads", "steps_scale", "preset", "reward", "target", "objectives",
+                                           "n_networks", "dispatch"))
+    add_options(parser, Measurement)
+    # The load sweep's world (its defaults: queues, cancel on reply, shared links, no background).
+    add_world_options(parser)
+    add_plumbing(parser, "--out", type=Path, required=True, help="new output folder")
+    add_plumbing(parser, "--overwrite", action="store_true", help="replace an earlier mechanism folder there")
     add_verbosity_options(parser)
     args = parser.parse_args(argv)
     configure_verbosity(args)
@@ -64,11 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from yafs_safetail.runs.output import MECHANISM_FILE, StagedOutput
     from yafs_safetail.versions import run_json_fields
 
-    # The load sweep's world: the same defaults as experiments/load_sweep.py (queues, cancel on
-    # reply, shared links, no background tenants).
-    config: SweepConfig = config_from_args(
-        args, SweepConfig, base=ContentionConfig(use_case=args.uc, seed=args.seed, users=args.users,
-                                                 queue=True, cancel=True, background=False))
+    config: SweepConfig = config_from_args(args, SweepConfig, base=contention_base(args, args.seed))
     command = " ".join([*invocation("experiments/training_mechanism.py"),
                         *(sys.argv[1:] if argv is None else argv)])
     output = StagedOutput(args.out, args.overwrite)
@@ -79,8 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         mechanism_figure(table, staging / "mechanism.png")
         write_text_atomic(staging / "run.json", json.dumps({
             "package_version": __version__, **run_json_fields(), "command": command, "kind": MECHANISM_KIND,
-            "use_case": args.uc,
-            "users": args.users, "seed": args.seed, "loads": list(config.loads), "steps_scale": config.steps_scale,
+            "use_case": config.base.use_case,
+            "users": config.base.users, "seed": config.base.seed, "loads": list(config.loads), "steps_scale": config.steps_scale,
             "target": config.target, "windows": args.windows,
             "safetails": [asdict(variant) for variant in config.safetails]}, indent=1) + "\n")
         output.publish()

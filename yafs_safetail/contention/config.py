@@ -12,17 +12,33 @@ their options with these before anything heavy loads (``tests/test_first_answer.
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
-from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY, WORLD_OVERRIDES
 from yafs_safetail.edge.energy import EnergyModel
 from yafs_safetail.edge.failure_settings import FailureSettings
+from yafs_safetail.settings.declare import (
+    BOOLEAN,
+    POSITIVE_INTEGER,
+    POSITIVE_NUMBER,
+    Check,
+    SettingError,
+    check_config,
+    field_of,
+    one_of,
+    same_as,
+    setting,
+    setting_of,
+)
+from yafs_safetail.settings.experiment import Task, WorldInputs
+from yafs_safetail.settings.world import WORLD_OVERRIDES, WorldOverrides
 
 if TYPE_CHECKING:
     import numpy as np
@@ -45,110 +61,102 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
 )
 
 
-class ContentionError(ValueError):
+class ContentionError(SettingError):
     """A contention-world setting or input that cannot make a run (one line naming it)."""
 
 
+def _servers(text: str) -> bool:
+    """``--servers``: ``queue`` (True) or ``refuse`` (False)."""
+    if text not in ("queue", "refuse"):
+        raise argparse.ArgumentTypeError(f"expected queue or refuse, got {text!r}")
+    return text == "queue"
+
+
+#: What a full server does with a copy, read as ``queue``/``refuse`` on the command line.
+SERVERS = Check("true (queue) or false (refuse)", lambda v: isinstance(v, bool), _servers)
+#: Each user's distance conditions: a word or a file (``~`` expanded, as in every path option).
+USER_CONDITIONS = Check("topology, generated or a JSON file", lambda v: isinstance(v, str | Path) and bool(str(v)),
+                        os.path.expanduser)
+FAILURES = Check("a FailureSettings", lambda v: isinstance(v, FailureSettings))
+ENERGY = Check("an EnergyModel", lambda v: isinstance(v, EnergyModel))
+
+
 @dataclass(frozen=True)
-class ContentionConfig:
+class ContentionConfig(WorldOverrides):
     """One contention-world run of one method (everything but the method).
 
-    Attributes:
-        use_case: 1, 2 or 3.
-        n_requests: requests simulated (ignored with ``arrivals_csv``: its rows are the requests).
-        seed: the run's seed.
-        phase: names the random streams (``"train"`` and ``"test"`` are independent worlds).
-        users: U.
-        load: offered utilisation of the servers' slots by the users' requests: arrival rate ×
-            mean single-copy service time ÷ total slots (see
-            :meth:`~yafs_safetail.contention.world.ContentionWorld.rate_for_load`).
-        rate_per_user_hz: each user's Poisson rate; when given, it sets the rate and ``load`` is
-            not used.
-        arrivals_csv: a CSV of ``time_s,user`` rows (user in 0..U-1) instead of Poisson streams.
-        queue: FIFO waiting queue at a full server instead of refusal.
-        cancel: cancel the other copies when the first reply arrives.
-        background: the load trace's background tenants (False: the servers serve only the users).
-        links: ``"shared"`` (processor sharing over each transfer) or ``"at-start"`` (the level
-            when the transfer starts); :data:`LINK_MODELS`.
-        world: the world's readings and calibrated parameters (``"calibrated-v1"``, the first
-            calibration, in which docs/contention.md's figures were measured; ``"calibrated"``,
-            the paper presets' learner-free fit; or ``"landed"``).
-        topology: topology JSON (per-server ``IPT`` and ``capacity`` are read here).
-        placement: placement JSON.
-        traces_dir: the traces folder (None: the repository's).
-        block_requests: requests drawn per block.
-        user_conditions: each user's distance condition (1..5) per server: ``"topology"`` (the
-            topology's link conditions for every user), ``"generated"`` (the topology's ±1 per
-            user and server, drawn once from the seed, the same in every phase) or a JSON file
-            ``{"users": [{"conditions": [c_0, ..., c_{n-1}]}, ...]}`` with one entry per user.
-        failures: when servers are down and how long a user waits for a reply (beyond the
-            paper; the default: no server ever fails and no time-out, the paper's world).
-        energy: the servers' and the devices' power models that price every copy.
-        target_latency_s, load_peak_users, target_compute, baseline_reading: the run's
-            overrides of the world's
-            settings, as the experiment's options of these names (``defaults.WORLD_OVERRIDES``,
-            applied by the same ``edge.world_parts.apply_world_overrides``); None keeps the
-            world's own.
+    Every field is declared once, here or (the same setting as the experiment's) with
+    ``settings.declare.same_as``; the sweep commands' world options, the checks
+    (:func:`check_contention_config`) and ``ContentionEnv``'s keywords derive from them. The
+    world's overrides (``target_latency_s``, ``load_peak_users``...) are inherited from
+    ``settings.world.WorldOverrides`` and applied by ``settings.world.apply_world_overrides``,
+    as the experiment's are; None keeps the world's own.
     """
 
-    use_case: int = 1
-    n_requests: int = 10_000
-    seed: int = 0
-    phase: str = "test"
-    users: int = 1
-    load: float | None = 0.3
-    rate_per_user_hz: float | None = None
-    arrivals_csv: Path | None = None
-    queue: bool = False
-    cancel: bool = True
-    background: bool = True
-    links: str = "shared"
-    world: str = "calibrated-v1"
-    topology: Path = DEFAULT_TOPOLOGY
-    placement: Path = DEFAULT_PLACEMENT
-    traces_dir: Path | None = None
-    block_requests: int = DEFAULT_BLOCK_REQUESTS
-    user_conditions: str | Path = "topology"
-    failures: FailureSettings = FailureSettings()
-    energy: EnergyModel = EnergyModel()
-    target_latency_s: float | None = None
-    load_peak_users: float | None = None
-    target_compute: str | None = None
-    baseline_reading: str | None = None
+    use_case: int = same_as(Task, "use_case")
+    n_requests: int = setting(10_000, "requests simulated (ignored with arrivals_csv: its rows are the requests)",
+                              check=POSITIVE_INTEGER, flag="")
+    seed: int = same_as(Task, "seed")
+    phase: str = setting("test", "names the random streams ('train' and 'test' are independent worlds)",
+                         flag="")
+    users: int = setting(1, "users U", check=POSITIVE_INTEGER)
+    load: float | None = setting(
+        0.3, "offered utilisation of the servers' slots by the users' requests: arrival rate × mean "
+        "single-copy service time ÷ total slots (ContentionWorld.rate_for_load)", check=POSITIVE_NUMBER,
+        optional=True, flag="")
+    rate_per_user_hz: float | None = setting(
+        None, "each user's Poisson rate; when given, it sets the rate and load is not used",
+        check=POSITIVE_NUMBER, optional=True, flag="")
+    arrivals_csv: Path | None = setting(
+        None, "a CSV of time_s,user rows (user in 0..U-1) instead of Poisson streams", optional=True, flag="")
+    queue: bool = setting(False, "what a full server does with a copy: queue (FIFO; the sweeps' default) or refuse (the "
+                          "paper; a ContentionConfig's default)",
+                          check=SERVERS, flag="--servers", metavar="{queue,refuse}")
+    cancel: bool = setting(True, "let the other copies run to the end (default: cancelled at the first reply)",
+                           check=BOOLEAN, flag="--no-cancel", action="store_false")
+    background: bool = setting(True, "add the load trace's background tenants on top of the users' load",
+                               check=BOOLEAN, flag="--background", action="store_true")
+    links: str = setting(
+        "shared", "transfers share each server's links over their duration (shared) or take the bandwidth "
+        "of the level when they start (at-start, the single-user reading)", check=one_of(LINK_MODELS))
+    world: str = setting(
+        "calibrated-v1", "the world's readings and calibrated parameters: calibrated-v1 (the first calibration, "
+        "in which docs/contention.md's figures were measured), calibrated (the paper presets' learner-free "
+        "fit) or landed", flag="")
+    topology: Path = same_as(WorldInputs, "topology")
+    placement: Path = same_as(WorldInputs, "placement",
+                              help="YAFS placement JSON (default placements/paper_5servers.json)")
+    traces_dir: Path | None = same_as(WorldInputs, "traces_dir", default=None, optional=True)
+    block_requests: int = setting(DEFAULT_BLOCK_REQUESTS, "requests drawn per block (memory stays bounded "
+                                  "however long the run)", check=POSITIVE_INTEGER, flag="")
+    user_conditions: str | Path = setting(
+        "topology", "each user's distance condition per server: topology (the topology's link conditions for "
+        "every user), generated (the topology's ±1 per user and server, drawn once from the seed) or a JSON "
+        "file {\"users\": [{\"conditions\": [c_0, ...]}, ...]} (the contention world in the documentation)",
+        check=USER_CONDITIONS)
+    failures: FailureSettings = setting(
+        FailureSettings(), "when servers are down and how long a user waits for a reply (beyond the paper; "
+        "the default: no server ever fails and no time-out, the paper's world)", check=FAILURES, flag="")
+    energy: EnergyModel = setting(EnergyModel(), "the servers' and the devices' power models that price every copy",
+                                  check=ENERGY, flag="")
 
-    def world_overrides(self) -> dict[str, Any]:
-        """The overrides of the world's settings it sets (a sweep point's settings record only
-        these, so the run id of a point without any stays what it was before they existed)."""
-        return {name: getattr(self, name) for name in WORLD_OVERRIDES if getattr(self, name) is not None}
+    #: What check_config raises for a bad field.
+    setting_error: ClassVar[type[ValueError]] = ContentionError
 
     def with_world_overrides(self, settings: Mapping[str, Any]) -> ContentionConfig:
         """This configuration with the world overrides a sweep point's ``settings`` record."""
         return replace(self, **{name: settings[name] for name in WORLD_OVERRIDES if name in settings})
 
 
-def check_contention_config(config: ContentionConfig) -> None:
-    """The settings a run cannot start with, as a one-line :class:`ContentionError`."""
-    def positive_int(name: str, value: object) -> None:
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ContentionError(f"{name}: expected a positive integer, got {value!r}")
-
-    positive_int("--users", config.users)
-    positive_int("--requests", config.n_requests)
-    positive_int("block_requests", config.block_requests)
-    if config.links not in LINK_MODELS:
-        raise ContentionError(f"--links: expected one of {', '.join(LINK_MODELS)}, got {config.links!r}")
-    if config.arrivals_csv is None:
-        if config.load is None and config.rate_per_user_hz is None:
-            raise ContentionError("--load / --rate-per-user: give one of them")
-        by_rate = config.rate_per_user_hz is not None
-        value = config.rate_per_user_hz if by_rate else config.load
-        if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
-            name = "--rate-per-user" if by_rate else "--load"
-            raise ContentionError(f"{name}: expected a positive number, got {value!r}")
-    if not isinstance(config.failures, FailureSettings):
-        raise ContentionError(f"failures: expected a FailureSettings, got {config.failures!r}")
-    if not isinstance(config.energy, EnergyModel):
-        raise ContentionError(f"energy: expected an EnergyModel, got {config.energy!r}")
+def check_contention_config(config: ContentionConfig, style: str = "option") -> None:
+    """The settings a run cannot start with, as a one-line :class:`ContentionError`: each field
+    against its declared check (named as its option, or with ``style="field"`` as the field),
+    then what only the fields together say."""
+    check_config(config, style)
+    if config.arrivals_csv is None and config.load is None and config.rate_per_user_hz is None:
+        raise ContentionError(f"{setting_of(field_of(ContentionConfig, 'load')).label('load', style)} / "
+                              f"{setting_of(field_of(ContentionConfig, 'rate_per_user_hz')).label('rate_per_user_hz', style)}"
+                              ": give one of them")
 
 
 def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:

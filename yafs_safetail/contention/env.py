@@ -61,10 +61,10 @@ a run's last request there is none to dispatch: that step repeats the last one's
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import queue
 import threading
 import weakref
-from pathlib import Path
 from typing import Any
 
 import gymnasium
@@ -78,8 +78,6 @@ from yafs_safetail.contention.world import (
     ContentionWorld,
     check_contention_config,
 )
-from yafs_safetail.edge.energy import EnergyModel
-from yafs_safetail.edge.failures import FailureSettings
 from yafs_safetail.edge.inputs import TraceInputs
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.scenario import EdgeScenario
@@ -94,10 +92,14 @@ from yafs_safetail.methods.safetail.spaces import (
 )
 from yafs_safetail.observation_space import OBSERVATION_KINDS, encode_observation, observation_space
 from yafs_safetail.record import PHASES, RequestRecord
+from yafs_safetail.settings.declare import config_from_keywords, keyword_names
 
 #: The name of the threads that run a world (tests count them to find leaks).
 ENGINE_THREAD_NAME = "contention-env-engine"
 _DEFAULTS = ContentionConfig()
+#: The world's settings the environment takes as keywords: every ContentionConfig field but the
+#: seed, which ``reset`` gives (a field declared there is a keyword here with nothing else edited).
+ENV_SETTINGS: tuple[str, ...] = tuple(name for name in keyword_names(ContentionConfig) if name != "seed")
 
 
 class _StopRun(BaseException):
@@ -179,28 +181,6 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
     ``reset``); the rest say how the agent's choices are sent, seen and rewarded.
 
     Args:
-        use_case: 1, 2 or 3.
-        n_requests: requests per run (a world; with ``arrivals_csv``, its rows).
-        phase: names the world's random streams (``"train"`` and ``"test"`` are independent).
-        users: U.
-        load: offered utilisation of the servers' slots.
-        rate_per_user_hz: each user's Poisson rate instead of ``load``.
-        arrivals_csv: ``time_s,user`` rows instead of Poisson streams.
-        queue: FIFO waiting queue at a full server instead of refusal.
-        cancel: cancel the other copies at the first reply.
-        background: the load trace's background tenants.
-        links: ``"shared"`` or ``"at-start"``.
-        world: the world's readings and calibrated parameters.
-        topology: topology JSON.
-        placement: placement JSON.
-        traces_dir: the traces folder (None: the repository's).
-        block_requests: requests drawn per block.
-        user_conditions: ``"topology"``, ``"generated"`` or a JSON file.
-        failures: when servers are down and how long a user waits.
-        energy: the power models pricing every copy.
-        target_latency_s, load_peak_users, target_compute, baseline_reading: overrides of the
-            world's settings
-            (None: the world's own), as ``SafeTailEnv``'s and the experiment's.
         dispatch: ``"all"`` (every copy at once) or ``"tied"``.
         target: the τ of the records and rewards: ``"eq4"`` or ``"observed-load"``.
         reward: ``"paper"`` (Eq. 5), ``"no-free-miss"`` or ``"latency-cost"``.
@@ -208,6 +188,10 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         observation: ``"dict"`` or ``"vector"``.
         episode_requests: steps per episode (None: ``n_requests``, one run per episode).
         method_name: the ``method`` of the records in ``info["completed"]``.
+        settings: the world's, any of :data:`ENV_SETTINGS` (every ``ContentionConfig`` field but
+            the seed, with its default and check: ``use_case``, ``n_requests``, ``users``,
+            ``load``, ``queue``, ``topology``, ``failures``, ``target_latency_s``...); paths may be
+            given as text.
 
     Raises:
         ValueError: a bad argument (one line naming it).
@@ -217,29 +201,6 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
 
     def __init__(
         self,
-        use_case: int = _DEFAULTS.use_case,
-        n_requests: int = _DEFAULTS.n_requests,
-        phase: str = _DEFAULTS.phase,
-        users: int = _DEFAULTS.users,
-        load: float | None = _DEFAULTS.load,
-        rate_per_user_hz: float | None = _DEFAULTS.rate_per_user_hz,
-        arrivals_csv: str | Path | None = _DEFAULTS.arrivals_csv,
-        queue: bool = _DEFAULTS.queue,
-        cancel: bool = _DEFAULTS.cancel,
-        background: bool = _DEFAULTS.background,
-        links: str = _DEFAULTS.links,
-        world: str = _DEFAULTS.world,
-        topology: str | Path = _DEFAULTS.topology,
-        placement: str | Path = _DEFAULTS.placement,
-        traces_dir: str | Path | None = _DEFAULTS.traces_dir,
-        block_requests: int = _DEFAULTS.block_requests,
-        user_conditions: str | Path = _DEFAULTS.user_conditions,
-        failures: FailureSettings = _DEFAULTS.failures,
-        energy: EnergyModel = _DEFAULTS.energy,
-        target_latency_s: float | None = _DEFAULTS.target_latency_s,
-        load_peak_users: float | None = _DEFAULTS.load_peak_users,
-        target_compute: str | None = _DEFAULTS.target_compute,
-        baseline_reading: str | None = _DEFAULTS.baseline_reading,
         dispatch: str = "all",
         target: str = "eq4",
         reward: str = "paper",
@@ -247,25 +208,22 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
         observation: str = "dict",
         episode_requests: int | None = None,
         method_name: str = "agent",
+        **settings: Any,
     ) -> None:
-        for name, value, valid in (("phase", phase, PHASES), ("dispatch", dispatch, SAFETAIL_DISPATCH),
-                                   ("target", target, TARGETS), ("reward", reward, REWARD_NAMES),
-                                   ("preset", preset, PRESET_NAMES), ("observation", observation, OBSERVATION_KINDS)):
+        for name, value, valid in (("dispatch", dispatch, SAFETAIL_DISPATCH), ("target", target, TARGETS),
+                                   ("reward", reward, REWARD_NAMES), ("preset", preset, PRESET_NAMES),
+                                   ("observation", observation, OBSERVATION_KINDS)):
             if value not in valid:
                 raise ContentionError(f"{name}: expected one of {', '.join(valid)}, got {value!r}")
         if episode_requests is not None and (isinstance(episode_requests, bool)
                                              or not isinstance(episode_requests, int) or episode_requests < 1):
             raise ContentionError(f"episode_requests: expected a positive integer, got {episode_requests!r}")
-        self.config = ContentionConfig(
-            use_case=use_case, n_requests=n_requests, seed=0, phase=phase, users=users, load=load,
-            rate_per_user_hz=rate_per_user_hz, arrivals_csv=None if arrivals_csv is None else Path(arrivals_csv),
-            queue=queue, cancel=cancel, background=background, links=links, world=world,
-            topology=Path(topology), placement=Path(placement),
-            traces_dir=None if traces_dir is None else Path(traces_dir), block_requests=block_requests,
-            user_conditions=user_conditions, failures=failures, energy=energy,
-            target_latency_s=target_latency_s, load_peak_users=load_peak_users, target_compute=target_compute,
-            baseline_reading=baseline_reading)
-        check_contention_config(self.config)
+        if settings.get("phase", _DEFAULTS.phase) not in PHASES:
+            raise ContentionError(f"phase: expected one of {', '.join(PHASES)}, got {settings['phase']!r}")
+        self.config: ContentionConfig = config_from_keywords(ContentionConfig, settings, ENV_SETTINGS,
+                                                             "SafeTailContention-v0", seed=0)
+        check_contention_config(self.config, style="field")
+        arrivals_csv = self.config.arrivals_csv
         # The seed-0 world checks every setting and input file now, and its trace inputs and
         # scenario serve every later world (they do not depend on the seed).
         probe = ContentionWorld(dataclasses.replace(self.config, n_requests=1) if arrivals_csv is None
@@ -383,3 +341,16 @@ class ContentionEnv(gymnasium.Env[Any, Any]):
 
     def _encode(self, observation: Observation) -> Any:
         return encode_observation(self.observation_space, observation, self._scales)
+
+
+def _signature() -> inspect.Signature:
+    """``ContentionEnv``'s signature with every world setting written out (``help()``,
+    ``inspect``), each with its declared default."""
+    own = [parameter for parameter in inspect.signature(ContentionEnv.__init__).parameters.values()
+           if parameter.kind is not inspect.Parameter.VAR_KEYWORD]
+    declared = [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=getattr(_DEFAULTS, name))
+                for name in ENV_SETTINGS]
+    return inspect.Signature([*own, *declared])
+
+
+ContentionEnv.__init__.__signature__ = _signature()  # type: ignore[attr-defined]

@@ -1,10 +1,9 @@
 """The contention world's sweeps: every method at every point of one axis.
 
-Two axes share one loop (:func:`run_sweep`), one campaign path (each point a campaign run:
-:func:`point_specs`, :func:`run_sweep_point`) and one table per point: the **load sweep** (the
+Two axes share one loop (:func:`run_sweep`) and one table per point: the **load sweep** (the
 offered load rises) and the **failure sweep** (each server's stationary probability of being
 down rises at a fixed load; issue 31); ``contention.sweep_config`` says what each is
-(``SweepConfig``, ``FailureSweepConfig``).
+(``SweepConfig``, ``FailureSweepConfig``). Each point is a campaign run (``runs.sweep_points``).
 
 At each point: a training world and a test world (independent streams, same users and
 settings); each SafeTail learns on the training world at that point and is tested greedily;
@@ -18,35 +17,19 @@ numbers). One row per (point, method) goes to the point's ``sweep.csv``.
 
 from __future__ import annotations
 
-import hashlib
-import json
-import logging
 from collections.abc import Callable, Mapping
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from yafs_safetail.contention.run import run_policy, summarise
-from yafs_safetail.contention.sweep_config import (
-    LOAD_POINT,
-    POINT_KINDS,
-    ContentionSweep,
-    SafeTailVariant,
-)
-from yafs_safetail.contention.world import ContentionError, ContentionWorld
-from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
+from yafs_safetail.contention.sweep_config import ContentionSweep, SafeTailVariant
+from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.policy import Policy
-from yafs_safetail.methods.registry import SAFETAIL, make_baseline
+from yafs_safetail.methods.registry import SAFETAIL, make_baseline, method_rng
 from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 from yafs_safetail.methods.safetail.presets import get_preset
-from yafs_safetail.results.files import write_text_atomic
-from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
-from yafs_safetail.runs.output import StagedOutput
-from yafs_safetail.runs.workers import method_rng
-
-log = logging.getLogger(__name__)
 
 
 def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int) -> SafeTailPolicy:
@@ -111,53 +94,3 @@ def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line:
             rows.append(row)
             log(f"{label} {value:g}: {policy.name:<11} {_row_line(row)}  ({run.wall_s:.1f} s)")
     return pd.DataFrame(rows, columns=list(config.columns))
-
-
-def point_run_id(settings: Mapping[str, Any], kind: str = LOAD_POINT) -> str:
-    """The short hash of everything a sweep point's rows depend on (its kind and settings, the
-    input files' contents, the code version)."""
-    identity = dict(settings, kind=kind, code_version=code_version())
-    for key in ("topology", "placement"):
-        identity[key] = file_identity(Path(settings[key]))
-    if settings["user_conditions"] not in ("topology", "generated"):
-        identity["user_conditions"] = file_identity(Path(settings["user_conditions"]))
-    canonical = json.dumps(identity, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
-
-
-def point_specs(config: ContentionSweep) -> list[RunSpec]:
-    """One campaign run per point, points ascending (folder ``<axis folder>-<value>``)."""
-    specs = []
-    axis = config.axis
-    for value in config.points:
-        settings = config.point_settings(value)
-        specs.append(RunSpec(name=f"{axis.folder}-{value:g}", run_id=point_run_id(settings, axis.kind),
-                             settings=settings, kind=axis.kind))
-    return specs
-
-
-def run_sweep_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
-    """Run one point of a sweep (a campaign run of kind ``load_point`` or ``failure_point``)
-    into ``out_dir``: its ``sweep.csv`` rows, a ``run.json`` recording the run id and a
-    ``run.log`` (staged; nothing is lost if it stops half way)."""
-    from yafs_safetail import __version__
-    from yafs_safetail.versions import run_json_fields
-
-    if spec.kind not in POINT_KINDS:
-        raise ContentionError(f"run {spec.name}: kind {spec.kind!r} is not a sweep point; "
-                              f"expected one of {', '.join(POINT_KINDS)}")
-    config = POINT_KINDS[spec.kind].from_point_settings(spec.settings)
-    output = StagedOutput(out_dir, overwrite)
-    with output as staging:
-        with run_log(staging / RUN_LOG_FILE):
-            log.info("yafs-safetail %s: %s", __version__, command or "(run from Python)")
-            log.info("%s point %s (run id %s): %s", config.axis.label, spec.name, spec.run_id,
-                     ", ".join(f"{key}={value}" for key, value in spec.settings.items()))
-            with Phase(f"{spec.name} sweep", logger=log):
-                frame = run_sweep(config, log=log.info)
-            frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
-            write_text_atomic(staging / "run.json", json.dumps({
-                "package_version": __version__, "campaign_run_id": spec.run_id, "kind": spec.kind,
-                "command": command, "settings": dict(spec.settings), **run_json_fields()}, indent=1, sort_keys=True) + "\n")
-        output.publish()
-    return out_dir

@@ -7,9 +7,9 @@ import argparse
 import math
 from typing import Any
 
-from yafs_safetail.cli import load_list
 from yafs_safetail.defaults import OBJECTIVES
-from yafs_safetail.runs.settings import Check
+from yafs_safetail.settings.declare import Check
+from yafs_safetail.settings.parse import load_list
 
 
 def _method_names(text: str) -> tuple[str, ...]:
@@ -23,7 +23,7 @@ METHOD_NAMES = Check("comma-separated method names",
 
 
 def _learner_names(text: str) -> tuple[str, ...]:
-    """``--learner``: one or both of OBJECTIVES, comma-separated, in the order given."""
+    """``--objectives``: one or both of OBJECTIVES, comma-separated, in the order given."""
     names = tuple(name.strip() for name in text.split(",") if name.strip())
     if not names or len(set(names)) != len(names) or any(name not in OBJECTIVES for name in names):
         raise argparse.ArgumentTypeError(f"expected distinct names of {', '.join(OBJECTIVES)}, got {text!r}")

@@ -1,8 +1,8 @@
 """What a contention sweep is: its axis, methods and SafeTails (:class:`ContentionSweep`; the
 load sweep :class:`SweepConfig`, the failure sweep :class:`FailureSweepConfig`), each field
-declared once with its option and check (``runs.settings.setting``).
+declared once with its option and check (``settings.declare.setting``).
 
-Light modules only (the standard library, ``cli``, ``defaults``, ``runs.settings``,
+Light modules only (the standard library, ``defaults``, ``settings``,
 ``contention.config``, ``edge.failure_settings``): the sweep commands build their parsers from
 these classes, and ``--help`` or a bad argument must answer before NumPy, pandas or TensorFlow
 loads (``tests/test_first_answer.py``). What needs the learner's presets (each SafeTail's training
@@ -32,13 +32,16 @@ from yafs_safetail.contention.sweep_checks import (
 )
 from yafs_safetail.defaults import PRESET_NAMES, SAFETAIL, SAFETAIL_DISPATCH
 from yafs_safetail.edge.failure_settings import DEFAULT_MTTR_S, FailureSettings
-from yafs_safetail.runs.settings import (
+from yafs_safetail.settings.declare import (
     BOOLEAN,
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
+    check_config,
     one_of,
+    same_as,
     setting,
 )
+from yafs_safetail.settings.experiment import FailuresAndPower, LearnerOverrides, Task
 
 if TYPE_CHECKING:
     from yafs_safetail.contention.world import ContentionWorld
@@ -64,6 +67,10 @@ DEFAULT_FAILURE_METHODS: tuple[str, ...] = (
 #: How many networks the value learner averages unless told (``SweepConfig.value_networks``):
 #: chosen on seeds 0-6 over one network, then judged on seeds 19-30 (docs/deviations.md D13).
 DEFAULT_VALUE_NETWORKS = 3
+#: Every sweep's world unless its options say otherwise (the commands' defaults): 50 users, a full
+#: server queues, no background tenants; the rest is ContentionConfig's own (cancel on reply,
+#: shared links, the paper's topology).
+SWEEP_WORLD = ContentionConfig(users=50, queue=True, background=False)
 #: Test requests per point (load or failure level) at steps scale 1.
 TEST_REQUESTS = 20_000
 #: What every point's table ends with: each method's figures and its training budget.
@@ -150,8 +157,8 @@ class SafeTailVariant:
 class ContentionSweep:
     """What every sweep shares: the contention world of every point (``base``; what the axis
     varies, ``phase`` and ``n_requests`` are set per point and phase) and the methods and
-    SafeTails it runs, each field declared once with its help (``runs.settings.setting``; the
-    sweep commands derive their options from them). ``learners`` names the SafeTails it trains
+    SafeTails it runs, each field declared once with its help (``settings.declare.setting``; the
+    sweep commands derive their options from them). ``objectives`` names the SafeTails it trains
     (:attr:`safetails` resolves each one's preset, dispatch and reward). The value learner has
     its own reward (``"latency-cost"``), so ``reward`` is the paper learner's and stays
     ``"paper"`` when the value learner runs alone (docs/deviations.md D13).
@@ -166,19 +173,20 @@ class ContentionSweep:
                              action="store_false")
     preset: str | None = setting(None, "every SafeTail's preset (default: paper for SafeTail, tuned for "
                                  "SafeTail-CA)", check=one_of(PRESET_NAMES), optional=True)
-    steps_scale: float = setting(1.0, "scales SafeTail's training requests and the 20,000 test requests per sweep point "
-                                 "(load or failure level)",
-                                 check=POSITIVE_NUMBER)
+    steps_scale: float = same_as(Task, "steps_scale", help="scales SafeTail's training requests and the 20,000 "
+                                 "test requests per sweep point (load or failure level)")
     reward: str = setting("paper", "the paper learner's reward: Eq. 5 (default) or Eq. 5 without case 3's free "
                           "miss with all servers (the contention world in the documentation); SafeTail-CA has its own",
                           check=one_of(("paper", "no-free-miss")))
     target: str = setting("eq4", "the target τ of SafeTail's reward: eq4 (Eq. 4, the paper) or "
                           "observed-load (its compute term at the servers' load seen at dispatch; "
                           "deviation D12 in the documentation)", check=one_of(TARGETS))
-    learners: tuple[str, ...] = setting(
-        tuple(SAFETAIL_LEARNERS), "the SafeTails to train, comma-separated (default both): target-vector (the "
-        "paper's §III learner, row SafeTail) and value (the same network predicting each action's latency, its "
-        "copies priced at dispatch: row SafeTail-CA, deviation D13 in the documentation)", check=LEARNERS, flag="--learner")
+    # The run's --objective, several of them: each names one SafeTail the sweep trains.
+    objectives: tuple[str, ...] = setting(
+        tuple(SAFETAIL_LEARNERS), "the SafeTails to train by their learners' objectives, comma-separated "
+        "(default both): target-vector (the paper's §III learner, row SafeTail) and value (the same network "
+        "predicting each action's latency, its copies priced at dispatch: row SafeTail-CA, deviation D13 in "
+        "the documentation)", check=LEARNERS, deprecated=("--learner",))
     dispatch: str | None = setting(
         None, "how every SafeTail's subset is sent: all at once (the paper; SafeTail's default) or tied "
         "(cancelled once one copy starts running, as Tied; with the value learner at least two copies; "
@@ -187,36 +195,32 @@ class ContentionSweep:
         None, "test requests per sweep point (default 20,000 × --steps-scale): more decide each p99 more "
         "closely",
         check=POSITIVE_INTEGER, flag="--test-requests", optional=True)
-    value_networks: int | None = setting(
-        None, "how many networks' predictions SafeTail-CA (the value learner) averages "
-        f"(default {DEFAULT_VALUE_NETWORKS}; deviation D13 in the documentation)", check=POSITIVE_INTEGER, optional=True)
+    n_networks: int | None = same_as(
+        LearnerOverrides, "n_networks", help="how many networks' predictions SafeTail-CA (the value learner) "
+        f"averages (default {DEFAULT_VALUE_NETWORKS}; deviation D13 in the documentation)")
 
     #: What the sweep varies (each subclass's).
     axis: ClassVar[SweepAxis]
 
+    #: What check_config raises for a bad field.
+    setting_error: ClassVar[type[ValueError]] = ContentionError
+
     def __post_init__(self) -> None:
-        n_test = self.test_requests_per_load
-        if n_test is not None and (isinstance(n_test, bool) or not isinstance(n_test, int) or n_test < 1):
-            raise ContentionError(f"test requests per load must be an integer >= 1, got {n_test!r}")
-        if not LEARNERS.accepts(self.learners):
-            raise ContentionError(f"learners {self.learners!r}: expected {LEARNERS.what}")
-        if self.dispatch is not None and self.dispatch not in SAFETAIL_DISPATCH:
-            raise ContentionError(f"dispatch {self.dispatch!r}: expected one of {', '.join(SAFETAIL_DISPATCH)}")
-        n_networks = self.n_value_networks
-        if isinstance(n_networks, bool) or not isinstance(n_networks, int) or n_networks < 1:
-            raise ContentionError(f"value networks must be an integer >= 1, got {n_networks!r}")
-        if n_networks > 1 and "value" not in self.learners:
+        check_config(self, "field")  # each field against its declaration
+        n_networks = self.networks_averaged
+        if n_networks > 1 and "value" not in self.objectives:
             raise ContentionError(f"{n_networks} value networks: only the value learner averages networks")
-        if self.learners == ("value",) and self.reward != "paper":
+        if self.objectives == ("value",) and self.reward != "paper":
             raise ContentionError(f"reward {self.reward!r}: the value learner has its own reward "
                                   "(latency-cost); leave the reward at paper")
 
     @property
-    def n_value_networks(self) -> int:
-        """The networks the value learner averages (``value_networks`` resolved; 1 without it)."""
-        if self.value_networks is not None:
-            return self.value_networks
-        return DEFAULT_VALUE_NETWORKS if "value" in self.learners else 1
+    def networks_averaged(self) -> int:
+        """The networks the value learner averages (``n_networks`` resolved; 1 without the value
+        learner)."""
+        if self.n_networks is not None:
+            return self.n_networks
+        return DEFAULT_VALUE_NETWORKS if "value" in self.objectives else 1
 
     @property
     def safetails(self) -> tuple[SafeTailVariant, ...]:
@@ -224,14 +228,14 @@ class ContentionSweep:
         if not self.safetail:
             return ()
         variants = []
-        for learner in self.learners:
+        for learner in self.objectives:
             preset, dispatch = LEARNER_DEFAULTS[learner]
             preset = self.preset or preset
             value = learner == "value"
             variants.append(SafeTailVariant(
                 name=SAFETAIL_LEARNERS[learner], learner=learner, preset=preset, dispatch=self.dispatch or dispatch,
                 reward="latency-cost" if value else self.reward,
-                n_networks=self.n_value_networks if value else 1,
+                n_networks=self.networks_averaged if value else 1,
                 train_requests=_train_requests(preset, self.base.use_case, self.steps_scale)))
         return tuple(variants)
 
@@ -274,8 +278,10 @@ class ContentionSweep:
             "topology": str(Path(base.topology).resolve()), "placement": str(Path(base.placement).resolve()),
             "user_conditions": conditions, "methods": list(self.methods), "safetail": self.safetail,
             "preset": self.preset, "steps_scale": self.steps_scale, "reward": self.reward,
-            "target": self.target, "learner": list(self.learners), "dispatch": self.dispatch,
-            "test_requests": self.test_requests, "value_networks": self.n_value_networks,
+            # The recorded names of the objectives and the networks ("learner", "value_networks")
+            # are part of every point's run id: they stay as the first sweeps wrote them.
+            "target": self.target, "learner": list(self.objectives), "dispatch": self.dispatch,
+            "test_requests": self.test_requests, "value_networks": self.networks_averaged,
             **base.world_overrides(),
         }
 
@@ -294,11 +300,11 @@ class ContentionSweep:
         return dict(base=base, methods=tuple(settings["methods"]), safetail=settings["safetail"],
                     preset=settings["preset"], steps_scale=settings["steps_scale"], reward=settings["reward"],
                     target=settings["target"],
-                    learners=(learners,) if isinstance(learners, str) else tuple(learners),
+                    objectives=(learners,) if isinstance(learners, str) else tuple(learners),
                     dispatch=settings["dispatch"],
                     # Absent from the folders of earlier versions, where it followed steps_scale.
                     test_requests_per_load=settings.get("test_requests"),
-                    value_networks=settings.get("value_networks", 1))
+                    n_networks=settings.get("value_networks", 1))
 
 
 @dataclass(frozen=True)
@@ -350,19 +356,11 @@ class FailureSweepConfig(ContentionSweep):
                           "load of the load sweep at which Oracle's queues are stable)", check=ONE_LOAD)
     mttr_s: float = setting(DEFAULT_MTTR_S, f"each server's mean time to repair in seconds (default {DEFAULT_MTTR_S:g}; "
                             "its mean time to failure follows from the level)", check=POSITIVE_NUMBER)
-    timeout_s: float | None = setting(
-        None, "how long a user waits for a reply before the on-device fallback (default: the world's worst-case "
-        "latency of a live uncontended copy)", check=POSITIVE_NUMBER, optional=True)
+    timeout_s: float | None = same_as(
+        FailuresAndPower, "timeout_s", help="how long a user waits for a reply before the on-device fallback "
+        "(default: the world's worst-case latency of a live uncontended copy)")
 
     axis: ClassVar[SweepAxis] = FAILURE_AXIS
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name, check in (("failure_levels", FAILURE_LEVELS), ("load", ONE_LOAD), ("mttr_s", POSITIVE_NUMBER)):
-            if not check.accepts(getattr(self, name)):
-                raise ContentionError(f"{name}: expected {check.what}, got {getattr(self, name)!r}")
-        if self.timeout_s is not None and not POSITIVE_NUMBER.accepts(self.timeout_s):
-            raise ContentionError(f"timeout_s: expected {POSITIVE_NUMBER.what}, got {self.timeout_s!r}")
 
     @property
     def points(self) -> tuple[float, ...]:

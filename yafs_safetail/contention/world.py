@@ -64,13 +64,8 @@ from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_se
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, phase_streams
-from yafs_safetail.edge.world_parts import (
-    OnWorldParts,
-    WorldOverrideError,
-    WorldParts,
-    apply_world_overrides,
-    read_world_parts,
-)
+from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
+from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
 
 __all__ = [
     "BACKGROUND_PERIOD_S", "ContentionWorld", "compute_speed_table",
@@ -115,7 +110,7 @@ class ContentionWorld(OnWorldParts):
 
     def __init__(self, config: ContentionConfig, inputs: TraceInputs | None = None,
                  scenario: EdgeScenario | None = None) -> None:
-        check_contention_config(config)
+        check_contention_config(config, style="field")  # a Python API: named as its fields
         self.config = config
         try:  # the named world with the run's overrides, as the experiment applies its own
             settings, _ = apply_world_overrides(world_settings(config.world), config)

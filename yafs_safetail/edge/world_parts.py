@@ -1,22 +1,20 @@
 """What a world is drawn from: the use case, its traces, the scenario and the world's settings.
 
 Every world of the project is drawn from these four parts: the paper's single-user runs
-(``runs.world_recipe``, used by the experiment and the Gymnasium environment ``sim.env``) and
+(``settings.world_recipe``, used by the experiment and the Gymnasium environment ``sim.env``) and
 the contention world (``contention.world``, which draws its request blocks and background
-tenants as edge worlds). They read the parts with :func:`read_world_parts`, apply a run's
-overrides of the world's settings with :func:`apply_world_overrides` and draw every world with
-:meth:`WorldParts.draw`, so a setting changes every world the same way.
+tenants as edge worlds). They read the parts with :func:`read_world_parts` (the world's settings
+with a run's overrides already applied: ``settings.world.apply_world_overrides``) and draw every
+world with :meth:`WorldParts.draw`, so a setting changes every world the same way.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
 
-from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S, DEFAULT_TRACE_DIR, WORLD_OVERRIDES
-from yafs_safetail.edge.calibration import CalibrationError, WorldSettings
+from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S, DEFAULT_TRACE_DIR
+from yafs_safetail.edge.calibration import WorldSettings
 from yafs_safetail.edge.energy import EnergyModel
 from yafs_safetail.edge.failures import FailureSettings
 from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
@@ -24,8 +22,7 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, DEFAULT_MAX_LOAD, EdgeWorld, build_world
 
-__all__ = ["WORLD_OVERRIDES", "OnWorldParts", "WorldOverrideError", "WorldOverrides", "WorldParts",
-           "apply_world_overrides", "read_world_parts"]
+__all__ = ["OnWorldParts", "WorldParts", "read_world_parts"]
 
 
 @dataclass(frozen=True)
@@ -84,7 +81,8 @@ def read_world_parts(use_case: int, settings: WorldSettings, topology: Path | st
 
     Args:
         use_case: the use case's number (1, 2 or 3).
-        settings: the world's settings, overrides already applied (:func:`apply_world_overrides`).
+        settings: the world's settings, overrides already applied
+            (``settings.world.apply_world_overrides``).
         topology: the topology JSON.
         placement: the placement JSON.
         traces_dir: the traces folder (None: the repository's).
@@ -102,59 +100,3 @@ def read_world_parts(use_case: int, settings: WorldSettings, topology: Path | st
     if scenario is None:
         scenario = load_scenario_for(inputs, Path(topology), Path(placement))
     return WorldParts(use_case=case, inputs=inputs, scenario=scenario, settings=settings)
-
-
-class WorldOverrides(Protocol):
-    """A run's configuration that may override the world's settings (:data:`WORLD_OVERRIDES`;
-    None keeps the world's own value). The experiment's and the contention world's both do."""
-
-    @property
-    def target_latency_s(self) -> float | None: ...
-
-    @property
-    def load_peak_users(self) -> float | None: ...
-
-    @property
-    def target_compute(self) -> str | None: ...
-
-    @property
-    def baseline_reading(self) -> str | None: ...
-
-
-class WorldOverrideError(CalibrationError):
-    """An override the world's settings refuse; the caller names it as its own option or field.
-
-    Attributes:
-        name: the setting's field name (one of :data:`WORLD_OVERRIDES`).
-        value: the refused value.
-    """
-
-    def __init__(self, name: str, value: Any) -> None:
-        super().__init__(f"{name}: {value!r} is out of range")
-        self.name = name
-        self.value = value
-
-
-def apply_world_overrides(settings: WorldSettings,
-                          config: WorldOverrides) -> tuple[WorldSettings, dict[str, Any]]:
-    """The world's settings with the run's overrides applied, and the overrides that changed them.
-
-    An override repeating the world's own value is left out of the second result: the world is
-    then still the named one, and a run's record says nothing was overridden.
-
-    Raises:
-        WorldOverrideError: a value the world's settings refuse (out of range).
-    """
-    changed_by: dict[str, Any] = {}
-    for name in WORLD_OVERRIDES:
-        value = getattr(config, name)
-        if value is None:
-            continue
-        try:
-            changed = dataclasses.replace(settings, **{name: value})
-        except (CalibrationError, TypeError):  # (TypeError: a value of the wrong type)
-            raise WorldOverrideError(name, value) from None
-        if changed != settings:
-            changed_by[name] = value
-        settings = changed
-    return settings, changed_by

@@ -16,6 +16,7 @@ import importlib.util
 import re
 import sys
 import traceback
+import zlib
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
@@ -41,6 +42,12 @@ _FAMILY_POLICIES: dict[str, Callable[..., Policy]] = {"Rand": RandX, "MinLoad": 
 #: The Tail at Scale's requests (``methods.hedging``): they need the contention world.
 CONTENTION_BASELINES: dict[str, Callable[..., Policy]] = {"Hedge": Hedge, "Tied": Tied}
 _BASELINE_RE = re.compile(r"^(Rand|MinLoad|MinProp)-(\d+)$")
+
+
+def method_rng(seed: int, method: str) -> np.random.Generator:
+    """A method's own generator (Rand draws, MinLoad tie-breaks), independent per method: the same
+    for a method whichever world runs it (the experiment's workers, the contention sweep)."""
+    return np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(method.encode())]))
 
 
 def parse_method(name: str) -> tuple[str, int | None]:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 if TYPE_CHECKING:
-    from yafs_safetail.runs.config import ExperimentConfig
+    from yafs_safetail.settings.experiment import ExperimentConfig
 
 log = logging.getLogger(__name__)
 

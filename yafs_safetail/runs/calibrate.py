@@ -61,10 +61,10 @@ from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world
 from yafs_safetail.methods.baselines import candidates_of
-from yafs_safetail.methods.registry import ORACLE, SAFETAIL, make_baseline
+from yafs_safetail.methods.registry import ORACLE, SAFETAIL, make_baseline, method_rng
 from yafs_safetail.results.files import PERCENTILES
 from yafs_safetail.results.paper import CALIBRATION_RATIOS, PaperRatio, paper_speedup
-from yafs_safetail.runs.workers import end_with_parent, method_rng
+from yafs_safetail.runs.workers import end_with_parent
 
 #: The single-server baselines whose latency over Oracle's the fit matches.
 X1_BASELINES = ("Rand-1", "MinLoad-1", "MinProp-1")

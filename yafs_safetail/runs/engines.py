@@ -26,10 +26,10 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from yafs_safetail.cli import raise_terminated
 from yafs_safetail.runs.engine_options import ENGINES, local_workers
 from yafs_safetail.runs.grid import RunSpec, config_run_id, make_config
 from yafs_safetail.runs.output import StagedOutput
+from yafs_safetail.stopping import raise_terminated
 
 #: Each run of a campaign computes on one core: the campaign's parallelism is its runs, and a
 #: run whose TensorFlow and BLAS spread over every core would fight the other workers for
@@ -82,7 +82,7 @@ def _run_experiment(task: RunTask) -> None:
 
 
 def _run_sweep_point(task: RunTask) -> None:
-    from yafs_safetail.contention.sweep import run_sweep_point
+    from yafs_safetail.runs.sweep_points import run_sweep_point
 
     run_sweep_point(task.spec, Path(task.out_dir), task.command, task.overwrite)
 
@@ -142,7 +142,7 @@ def _kill_before_publishing() -> None:
 
 def _worker_loop(connection: Connection) -> None:
     """A local worker: run each task the campaign sends until it sends None (or goes away)."""
-    from yafs_safetail.cli import Terminated
+    from yafs_safetail.stopping import Terminated
 
     _init_worker()
     try:
@@ -255,7 +255,7 @@ def _execute_and_pack(task: RunTask) -> RunResult:
     """On a Ray node: run into a private temporary folder and return it as a tar archive."""
     import ray
 
-    from yafs_safetail.cli import Terminated
+    from yafs_safetail.stopping import Terminated
 
     _init_worker()
     # This task's own folder (mkdtemp): the only one the finally below removes.

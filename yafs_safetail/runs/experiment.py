@@ -47,21 +47,24 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
-from yafs_safetail.methods.registry import baseline_names, sort_methods
+from yafs_safetail.methods.registry import baseline_names, method_rng, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS, state_dim
 from yafs_safetail.runs.budget import check_budget
 from yafs_safetail.runs.checkpoint import checkpoint_folder, discard_checkpoint, resumable_after
-from yafs_safetail.runs.config import ExperimentConfig, ExperimentError  # (also imported from here)
 from yafs_safetail.runs.figures_worker import FiguresWorker, start_figures_worker
 from yafs_safetail.runs.learners import check_learners, learner_names, make_learners
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.phases import LearnersJob, run_learners, run_other_methods
 from yafs_safetail.runs.provenance import run_metadata
 from yafs_safetail.runs.training import Checkpoints
-from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, method_rng, start_workers
-from yafs_safetail.runs.world_recipe import TEST, TRAIN, world_recipe
+from yafs_safetail.runs.workers import MethodsJob, MethodsWorker, start_workers
+from yafs_safetail.settings.experiment import (  # (also imported from here)
+    ExperimentConfig,
+    ExperimentError,
+)
+from yafs_safetail.settings.world_recipe import TEST, TRAIN, world_recipe
 from yafs_safetail.sim.selection import DISPATCH as SINGLE_USER_DISPATCH
 
 POLICY_FILE = "policy.keras"
@@ -108,10 +111,10 @@ def _check(config: ExperimentConfig) -> _Inputs:
     if config.learning_rate is not None and config.policy is not None:
         raise ExperimentError("--learning-rate: nothing trains with --policy; give one or the other")
     if config.objective is not None and config.policy is not None:
-        raise ExperimentError("--learner: a saved policy has its own learner (--policy); give one or the other")
+        raise ExperimentError("--objective: a saved policy has its own learner (--policy); give one or the other")
     if config.n_networks is not None and config.objective != "value":
         raise ExperimentError(f"--value-networks {config.n_networks}: only the value learner averages "
-                              "networks; give --learner value")
+                              "networks; give --objective value")
     if not config.redundancy_levels:
         raise ExperimentError("--redundancy: give at least one level x")
     recipe = world_recipe(config)  # every field's own check, then the traces and the scenario

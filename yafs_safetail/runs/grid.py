@@ -1,7 +1,7 @@
 """A campaign's grid: which runs it holds, what each one is called and what identifies it.
 
 A grid is fixed settings (``base``) and axes (``axes``: a list of values per
-:class:`~yafs_safetail.runs.config.ExperimentConfig` field that changes results); the campaign is every
+:class:`~yafs_safetail.settings.experiment.ExperimentConfig` field that changes results); the campaign is every
 combination, the first axis outermost. Written by hand as TOML, YAML or JSON::
 
     name = "uc{use_case}-{preset}-seed{seed}-{id}"    # optional; the default names each axis
@@ -24,7 +24,7 @@ A run's id is a short hash of everything its results depend on: every result-bea
 (paths replaced by where they are and a digest of what they hold, so an edited topology or
 trace file is a new run) and the code version (package version and git commit). Fields that
 only say where and how a run goes (``out_dir``, ``workers``, ``progress``...; declared with
-``changes_results=False`` in ``runs.config``) are not part of it.
+``changes_results=False`` in ``settings.experiment``) are not part of it.
 """
 
 from __future__ import annotations
@@ -45,8 +45,6 @@ import yafs_safetail
 from yafs_safetail.edge.calibration import WorldSettings, world_settings
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.registry import UserMethod
-from yafs_safetail.runs.config import LATER_RESULT_FIELDS, RESULT_FIELDS, ExperimentConfig
-from yafs_safetail.runs.config import RUNTIME_FIELDS as RUNTIME_FIELDS  # (re-exported)
 from yafs_safetail.runs.grid_checks import (  # (GridError and the field lists: re-exported)
     PATH_FIELDS,
     SETTABLE_FIELDS,
@@ -55,6 +53,8 @@ from yafs_safetail.runs.grid_checks import (  # (GridError and the field lists: 
     json_value,
     shown,
 )
+from yafs_safetail.settings.experiment import LATER_RESULT_FIELDS, RESULT_FIELDS, ExperimentConfig
+from yafs_safetail.settings.experiment import RUNTIME_FIELDS as RUNTIME_FIELDS  # (re-exported)
 
 #: Hex digits of a run id: 48 bits, so two configurations of one campaign never share one.
 ID_LENGTH = 12
@@ -70,7 +70,7 @@ class RunSpec:
         settings: the ExperimentConfig fields it sets, JSON values (paths absolute).
         kind: what executes it: ``"experiment"`` (``run_experiment``), ``"load_point"`` or
             ``"failure_point"`` (one point of a contention-world load or failure sweep,
-            ``contention.sweep.run_sweep_point``).
+            ``runs.sweep_points.run_sweep_point``).
     """
 
     name: str

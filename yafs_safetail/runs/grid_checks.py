@@ -1,6 +1,6 @@
 """A campaign grid's entries, checked whole before any run starts.
 
-Every entry of ``base`` and ``axes`` against its setting's check (``runs.config``), every input
+Every entry of ``base`` and ``axes`` against its setting's check (``settings.experiment``), every input
 file (resolved by ``runs.input_paths`` and read as the run reads it), every user's method
 (loaded), and every topology with its placement, redundancy levels and scripted outages: each bad
 entry is one line of the :class:`GridError`. ``runs.grid`` expands what passes into runs.
@@ -21,16 +21,16 @@ from yafs_safetail.edge.failures import read_down_file
 from yafs_safetail.edge.scenario import load_placement, load_scenario, load_topology
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS
-from yafs_safetail.runs.config import (
+from yafs_safetail.runs.input_paths import resolve_input
+from yafs_safetail.settings.declare import setting_of
+from yafs_safetail.settings.experiment import (
     GRID_RUNTIME_FIELDS,
     RESULT_FIELDS,
     RUNTIME_FIELDS,
     ExperimentConfig,
-    setting_of,
 )
-from yafs_safetail.runs.input_paths import resolve_input
 
-#: RUNTIME_FIELDS (from runs.config) say where a run goes and how it shows itself, never what
+#: RUNTIME_FIELDS (from settings.experiment) say where a run goes and how it shows itself, never what
 #: it computes: the campaign sets them, and they are left out of the run id. A grid sets the
 #: others, every field that may change the results (the run id hashes exactly these), and the
 #: few runtime fields declared ``in_grid`` (which copies of the figures to draw).

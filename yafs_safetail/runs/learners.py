@@ -15,9 +15,8 @@ from typing import TYPE_CHECKING
 
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
-from yafs_safetail.methods.registry import SAFETAIL, UserMethod
+from yafs_safetail.methods.registry import SAFETAIL, UserMethod, method_rng
 from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
-from yafs_safetail.runs.workers import method_rng
 
 if TYPE_CHECKING:
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
@@ -60,7 +59,7 @@ def make_learners(config: ExperimentConfig, inputs: _Inputs,
 
 
 def _safetail(config: ExperimentConfig, inputs: _Inputs) -> SafeTailPolicy:
-    """SafeTail with a fresh learner of the run's preset (and ``--learner``), or the saved one of
+    """SafeTail with a fresh learner of the run's preset (and ``--objective``), or the saved one of
     ``--policy``."""
     from yafs_safetail.methods.safetail.learner import SafeTailLearner
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
@@ -72,7 +71,7 @@ def _safetail(config: ExperimentConfig, inputs: _Inputs) -> SafeTailPolicy:
         inputs.learner_config, config.seed,
         metadata={"use_case": use_case.number, "topology": str(config.topology)},
     )
-    # The value learner (--learner value, D13) has its own reward, as in the contention world;
+    # The value learner (--objective value, D13) has its own reward, as in the contention world;
     # the §III learner has Eq. 5. Either way copies are sent all at once, as the paper's.
     reward_name = "latency-cost" if inputs.learner_config.objective == "value" else "paper"
     policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,

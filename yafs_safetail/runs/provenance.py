@@ -14,7 +14,7 @@ from yafs_safetail import results, versions
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
-from yafs_safetail.runs.settings import changed_settings
+from yafs_safetail.settings.declare import changed_settings
 
 if TYPE_CHECKING:
     from yafs_safetail.edge.phase_world import EdgeWorld
@@ -31,7 +31,7 @@ TITLED_SETTINGS = ("use_case", "preset", "seed", "steps_scale", "learning_rate")
 def titled_settings() -> tuple[str, ...]:
     """The settings titles never list: :data:`TITLED_SETTINGS` and what the output is (figures,
     formats, folder: they change which files exist, not what any says)."""
-    from yafs_safetail.runs.config import Output
+    from yafs_safetail.settings.experiment import Output
 
     return (*TITLED_SETTINGS, *(item.name for item in dataclasses.fields(Output)))
 

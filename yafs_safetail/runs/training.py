@@ -30,8 +30,8 @@ from yafs_safetail.runs.checkpoint import (
     has_checkpoint,
     read_checkpoint,
 )
-from yafs_safetail.runs.config import ExperimentConfig
 from yafs_safetail.runs.grid import config_run_id
+from yafs_safetail.settings.experiment import ExperimentConfig
 from yafs_safetail.sim.runner import Simulation, simulate
 
 log = logging.getLogger(__name__)

@@ -17,20 +17,18 @@ import multiprocessing
 import signal
 import sys
 import time
-import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import Phase
 from yafs_safetail.methods.policy import Policy
-from yafs_safetail.methods.registry import UserMethod, make_baseline
+from yafs_safetail.methods.registry import UserMethod, make_baseline, method_rng
 from yafs_safetail.record import records_frame
 from yafs_safetail.sim.runner import simulate
 
@@ -40,11 +38,6 @@ _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _WORKER_SIGNALS = frozenset({signal.SIGTERM, signal.SIGINT})
 
 log = logging.getLogger(__name__)
-
-
-def method_rng(seed: int, method: str) -> np.random.Generator:
-    """A method's own generator (Rand draws, MinLoad tie-breaks), independent per method."""
-    return np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(method.encode())]))
 
 
 @dataclass(frozen=True)

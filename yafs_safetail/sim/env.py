@@ -11,11 +11,13 @@ world ``run_usecase.py --seed s`` trains in (or tests in, ``phase="test"``), and
 sends one request to the chosen subset and runs the simulation until that request has its
 first reply. SafeTail trained through this environment gives the same records and weights as
 ``run_usecase.py`` (tested). Its world comes from the same recipe as the experiment's
-(``runs.world_recipe``), so it takes the same world options: ``target_latency_s``,
+(``settings.world_recipe``), so it takes the same world settings, as keywords named as the
+run's fields (:data:`ENV_SETTINGS`, derived from ``settings.experiment``'s declarations: a world
+setting declared there is a keyword here with nothing else edited): ``target_latency_s``,
 ``load_peak_users`` and ``target_compute`` as ``--target-latency-s``, ``--load-peak-users`` and
-``--target-compute``, and the failures and power models (``failure_mttf_s``, ``failure_mttr_s``,
+``--target-compute``, the failures and power models (``failure_mttf_s``, ``failure_mttr_s``,
 ``failure_probability``, ``down_intervals``, ``timeout_s``, ``server_idle_w``, ``server_max_w``;
-docs/failures_energy.md).
+docs/failures_energy.md) and the reward's prices.
 
 Spaces:
 
@@ -51,6 +53,7 @@ through these, as SafeTail does through its records.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from pathlib import Path
 from typing import Any
 
@@ -60,18 +63,24 @@ from gymnasium import spaces
 
 from yafs_safetail.edge.failures import END_REPLY
 from yafs_safetail.edge.observation import Observation
-from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, default_placement
-from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR
+from yafs_safetail.edge.scenario import default_placement
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.safetail.reward import priced_reward, reward
 from yafs_safetail.methods.safetail.spaces import StateScales, n_actions, subset_of
 from yafs_safetail.observation_space import OBSERVATION_KINDS, encode_observation, observation_space
 from yafs_safetail.record import PHASES, RequestRecord
-from yafs_safetail.runs.config import ExperimentConfig
-from yafs_safetail.runs.world_recipe import world_recipe
-from yafs_safetail.sim.population import DEFAULT_STEP_INTERVAL_S
+from yafs_safetail.settings.declare import config_from_keywords, field_of, keyword_names
+from yafs_safetail.settings.experiment import ExperimentConfig, WorldSetup
+from yafs_safetail.settings.world_recipe import world_recipe
 from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
+
+#: The run's settings the environment takes as keywords (named and checked as the run's fields):
+#: the use case, preset and budget, every setting of the world (``WorldSetup``) and the D15
+#: prices of the reward. The world's settings object (``world``) is one of them: None, the
+#: preset's world, as a run's.
+ENV_SETTINGS: tuple[str, ...] = ("use_case", "preset", "steps_scale", *keyword_names(WorldSetup),
+                                 "energy_price_per_j", "failure_penalty")
 
 
 class _AgentsChoice(Policy):
@@ -98,35 +107,15 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
     """SafeTail's decision problem as a Gymnasium environment (see the module docstring).
 
     Args:
-        use_case: 1 object detection, 2 instance segmentation, 3 noise removal.
-        preset: the preset whose world, δ, α_s and step budget apply (as ``run_usecase.py``).
         phase: ``"train"`` (the preset's training budget and world) or ``"test"``.
-        steps_scale: fraction of the phase's steps (``run_usecase.py --steps-scale``).
-        topology: YAFS topology JSON.
-        placement: YAFS placement JSON (default: the topology's file name under placements/).
-        traces_dir: the trace CSVs and compute models.
-        step_interval_s: simulated time between two requests.
         observation: ``"dict"`` (ω^t field by field) or ``"vector"`` (SafeTail's scaled state).
         results_path: YAFS result CSVs prefix (None: none written).
         method_name: the ``method`` of the records in ``info["record"]``.
-        target_latency_s: a fixed target latency τ for every request (``--target-latency-s``;
-            None: Eq. 4).
-        load_peak_users: background users on a server at its busiest minute
-            (``--load-peak-users``; None: the preset world's).
-        target_compute: C(s_j) of Eq. 4, ``"request"`` or ``"trace_median"``
-            (``--target-compute``; None: the preset world's).
-        baseline_reading: how the world's MinLoad-x and MinProp-x would choose
-            (``--baseline-reading``; None: the preset world's); recorded in the world's settings.
-        failure_mttf_s: each server's mean time to failure (``--failure-mttf-s``; None: none).
-        failure_mttr_s: each server's mean time to repair (``--failure-mttr-s``).
-        failure_probability: each server's stationary down probability (``--failure-probability``).
-        down_intervals: a CSV of scripted outages (``--down-intervals``).
-        timeout_s: how long the user waits for a reply (``--timeout-s``).
-        server_idle_w: a server's idle power (``--server-idle-w``).
-        server_max_w: a server's power at its load limit (``--server-max-w``).
-        energy_price_per_j: subtracted per joule from the reward (``--energy-price-per-j``).
-        failure_penalty: subtracted from the reward of a request without a reply
-            (``--failure-penalty``).
+        settings: any of :data:`ENV_SETTINGS`, as the run's field of that name (its default,
+            check and meaning: ``settings.experiment``, or ``run_usecase.py --help``), e.g.
+            ``use_case`` (1, 2, 3), ``preset``, ``steps_scale``, ``topology``, ``placement``
+            (default: the topology's file name under placements/), ``target_latency_s``,
+            ``failure_probability``, ``energy_price_per_j``; paths may be given as text.
 
     Raises:
         ValueError: a bad argument or input file (one line naming it).
@@ -136,55 +125,28 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
 
     def __init__(
         self,
-        use_case: int = 1,
-        preset: str = "paper",
         phase: str = "train",
-        steps_scale: float = 1.0,
-        topology: str | Path = DEFAULT_TOPOLOGY,
-        placement: str | Path | None = None,
-        traces_dir: str | Path = DEFAULT_TRACE_DIR,
-        step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
         observation: str = "dict",
         results_path: str | Path | None = None,
         method_name: str = "agent",
-        target_latency_s: float | None = None,
-        load_peak_users: float | None = None,
-        target_compute: str | None = None,
-        baseline_reading: str | None = None,
-        failure_mttf_s: float | None = None,
-        failure_mttr_s: float | None = None,
-        failure_probability: float | None = None,
-        down_intervals: str | Path | None = None,
-        timeout_s: float | None = None,
-        server_idle_w: float | None = None,
-        server_max_w: float | None = None,
-        energy_price_per_j: float | None = None,
-        failure_penalty: float | None = None,
+        **settings: Any,
     ) -> None:
         if phase not in PHASES:
             raise ValueError(f"phase: expected one of {PHASES}, got {phase!r}")
         if observation not in OBSERVATION_KINDS:
             raise ValueError(f"observation: expected one of {OBSERVATION_KINDS}, got {observation!r}")
-        if placement is None:
-            placement = default_placement(Path(topology))
+        config: ExperimentConfig = config_from_keywords(ExperimentConfig, settings, ENV_SETTINGS, "SafeTail-v0")
+        if "placement" not in settings:  # the topology's own, as the run command's default
+            config = dataclasses.replace(config, placement=default_placement(config.topology))
         # The experiment's own recipe: the same checks, world settings and overrides.
-        self._recipe = world_recipe(ExperimentConfig(
-            use_case=use_case, preset=preset, steps_scale=steps_scale, topology=Path(topology),
-            placement=Path(placement), traces_dir=Path(traces_dir), step_interval_s=step_interval_s,
-            target_latency_s=target_latency_s, load_peak_users=load_peak_users,
-            target_compute=target_compute, baseline_reading=baseline_reading,
-            failure_mttf_s=failure_mttf_s, failure_mttr_s=failure_mttr_s,
-            failure_probability=failure_probability,
-            down_intervals=None if down_intervals is None else Path(down_intervals), timeout_s=timeout_s,
-            server_idle_w=server_idle_w, server_max_w=server_max_w,
-            energy_price_per_j=energy_price_per_j, failure_penalty=failure_penalty), style="field")
+        self._recipe = world_recipe(config, style="field")
         self.use_case = self._recipe.use_case
         self.learner_config = self._recipe.learner
         self.phase = phase
         self.n_steps = self._recipe.n_steps(phase)
         self.episode_steps = self.learner_config.episode_steps
         self.delta = self.learner_config.delta
-        self.step_interval_s = float(step_interval_s)
+        self.step_interval_s = float(config.step_interval_s)
         self.results_path = None if results_path is None else Path(results_path)
         if self.results_path is not None:
             self.results_path.parent.mkdir(parents=True, exist_ok=True)
@@ -257,3 +219,16 @@ class SafeTailEnv(gymnasium.Env[Any, Any]):
 
     def _encode(self, observation: Observation) -> Any:
         return encode_observation(self.observation_space, observation, self._scales)
+
+
+def _signature() -> inspect.Signature:
+    """``SafeTailEnv``'s signature with every setting it takes written out (``help()``,
+    ``inspect``, IDEs), each with its declared default."""
+    own = [parameter for parameter in inspect.signature(SafeTailEnv.__init__).parameters.values()
+           if parameter.kind is not inspect.Parameter.VAR_KEYWORD]
+    declared = [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY,
+                                  default=field_of(ExperimentConfig, name).default) for name in ENV_SETTINGS]
+    return inspect.Signature([*own, *declared])
+
+
+SafeTailEnv.__init__.__signature__ = _signature()  # type: ignore[attr-defined]

@@ -1,7 +1,7 @@
 """The one recipe for a run's world: from a configuration to the pre-drawn world of a phase.
 
 The experiment (``runs.experiment``) and the Gymnasium environment (``sim.env``) both make their
-worlds here, so a setting that changes the world (the preset's world, ``--target-latency-s``,
+worlds here (a floor below both: ``settings``), so a setting that changes the world (the preset's world, ``--target-latency-s``,
 ``--load-peak-users``, ``--target-compute``, the topology, the failures and power models...)
 changes it the same way in both.
 """
@@ -18,21 +18,11 @@ from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings, read_down_file
 from yafs_safetail.edge.world import EdgeWorld
-from yafs_safetail.edge.world_parts import (
-    OnWorldParts,
-    WorldOverrideError,
-    WorldParts,
-    apply_world_overrides,
-    read_world_parts,
-)
+from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
 from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, LearnerConfig, scaled_steps
-from yafs_safetail.runs.config import (
-    ExperimentConfig,
-    ExperimentError,
-    check_config,
-    learner_config,
-    setting_of,
-)
+from yafs_safetail.settings.declare import check_config, field_of, setting_of
+from yafs_safetail.settings.experiment import ExperimentConfig, ExperimentError, learner_config
+from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
 
 #: The phases a run's worlds are drawn for (independent random streams).
 TRAIN, TEST = "train", "test"
@@ -80,7 +70,7 @@ class WorldRecipe(OnWorldParts):
 
 def _label(name: str, style: str) -> str:
     """How an error names the configuration field ``name`` (:meth:`Setting.label`)."""
-    return setting_of(next(f for f in dataclasses.fields(ExperimentConfig) if f.name == name)).label(name, style)
+    return setting_of(field_of(ExperimentConfig, name)).label(name, style)
 
 
 def failure_settings(config: ExperimentConfig, n_servers: int, style: str = "option") -> FailureSettings:
@@ -126,7 +116,7 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
     Args:
         config: the run's configuration.
         style: how errors name a setting (``"option"``: ``--target-latency-s``; ``"field"``:
-            ``target_latency_s``), as :func:`~yafs_safetail.runs.config.check_config`.
+            ``target_latency_s``), as :func:`~yafs_safetail.settings.declare.check_config`.
 
     Raises:
         ValueError: a bad setting or input file (one line naming it).

@@ -13,31 +13,31 @@ glance:
 
 :class:`ExperimentConfig` is the four together (it inherits their fields, so ``config.seed``
 and ``ExperimentConfig(seed=3)`` read as before). Each field carries a :class:`Setting` in its
-metadata (declared with :func:`setting`; the :class:`Setting` and :class:`Check` machinery lives
-in ``runs.settings``), and everything else is derived from it: the command-line options of the scripts
+metadata (declared with :func:`setting`; the machinery, and everything derived from the
+declarations, lives in ``settings.declare``): the command-line options of the scripts
 (:func:`add_options`), the configuration from parsed options (:func:`config_from_args`), the
 checks at run start (:func:`check_config`), the campaign grid's settable fields and the run id
-(``runs.grid``: :data:`RESULT_FIELDS`), the learner's hyperparameters (:func:`learner_config`)
-and ``run.json``'s record of what was overridden (:func:`learner_overrides`).
+(``runs.grid``: :data:`RESULT_FIELDS`), the Gymnasium environment's keywords (``sim.env``), the
+learner's hyperparameters (:func:`learner_config`) and ``run.json``'s record of what was
+overridden (:func:`learner_overrides`). The world's overrides are ``settings.world``'s, shared
+with the contention world.
 
 Adding a setting is one field in one group (CONTRIBUTING.md shows an example).
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 # Only light modules here: the scripts build their parsers and check their arguments from this
 # module before NumPy, pandas, simpy or TensorFlow load (``--help`` answers at once). The
 # defaults and choices come from yafs_safetail.defaults; what runs a configuration is imported
 # where it is used.
 from yafs_safetail.defaults import (
-    BASELINE_READINGS,
     DEFAULT_FIGURE_FORMATS,
     DEFAULT_PLACEMENT,
     DEFAULT_STEP_INTERVAL_S,
@@ -45,14 +45,9 @@ from yafs_safetail.defaults import (
     DEFAULT_TRACE_DIR,
     OBJECTIVES,
     PRESET_NAMES,
-    TARGET_COMPUTES,
-    WORLD_OVERRIDES,
 )
 from yafs_safetail.edge.published import USE_CASES
-
-# How a field is declared (Check, Setting, setting()): runs.settings; importable from here too,
-# as the commands and the contention sweep do.
-from yafs_safetail.runs.settings import (
+from yafs_safetail.settings.declare import (
     BOOLEAN,
     FORMATS,
     LEVELS,
@@ -61,13 +56,12 @@ from yafs_safetail.runs.settings import (
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
     PROBABILITY_BELOW_ONE,
-    Check,
-    Setting,
-    has_setting,
+    SettingError,
     one_of,
     setting,
     setting_of,
 )
+from yafs_safetail.settings.world import WorldOverrides
 
 if TYPE_CHECKING:
     from yafs_safetail.edge.calibration import WorldSettings
@@ -76,19 +70,14 @@ if TYPE_CHECKING:
 
 
 __all__ = [
-    "ExperimentError", "Task", "WorldSetup", "WORLD_OVERRIDES", "LearnerOverrides", "Output",
-    "LATER_RESULT_FIELDS",
-    "ExperimentConfig", "GROUPS", "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS",
-    "add_options", "config_from_args", "check_config", "learner_overrides", "learner_config",
+    "ExperimentError", "Task", "WorldInputs", "WorldOverrides", "FailuresAndPower", "WorldSetup",
+    "LearnerOverrides", "Output", "ExperimentConfig", "GROUPS", "FIRST_RESULT_FIELDS", "LATER_RESULT_FIELDS",
+    "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS", "learner_overrides", "learner_config",
     "expand_method_spec",
-    # From runs.settings.
-    "Check", "Setting", "setting", "setting_of", "one_of", "BOOLEAN", "FORMATS", "LEVELS",
-    "NON_NEGATIVE_INTEGER", "NON_NEGATIVE_NUMBER", "POSITIVE_INTEGER", "POSITIVE_NUMBER",
-    "PROBABILITY_BELOW_ONE",
 ]
 
 
-class ExperimentError(ValueError):
+class ExperimentError(SettingError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
 
 
@@ -97,7 +86,7 @@ class ExperimentError(ValueError):
 
 def expand_method_spec(spec: str) -> str:
     """A ``--method [NAME=]FILE.py:CLASS`` spec with ``~`` in its file expanded, as every path
-    option's is (``cli.user_path``); a ``module:Class`` spec is returned as it is."""
+    option's is (``settings.parse.user_path``); a ``module:Class`` spec is returned as it is."""
     name, sep, target = spec.partition("=")
     if not sep or ":" in name or "/" in name:  # no NAME= prefix (as methods.registry reads it)
         name, sep, target = "", "", spec
@@ -134,8 +123,8 @@ class Task:
 
 
 @dataclass(frozen=True)
-class WorldSetup:
-    """The world the run happens in: the topology, the traces, and the world's settings."""
+class WorldInputs:
+    """What the run's world is read from: the topology, the traces, the world's settings."""
 
     topology: Path = setting(DEFAULT_TOPOLOGY, "YAFS topology JSON with 1 to 10 edge servers "
                              "(default topologies/paper_5servers.json)")
@@ -147,27 +136,12 @@ class WorldSetup:
     world: WorldSettings | None = setting(
         None, "the world settings; None: the preset's world (methods.safetail.presets.PRESET_WORLDS)",
         flag="", optional=True)
-    # The world's settings a run may override (defaults.WORLD_OVERRIDES names these four;
-    # edge.world_parts.apply_world_overrides applies them, as it does the contention world's).
-    target_latency_s: float | None = setting(
-        None, "a fixed target latency for every request, in seconds (default: Eq. 4's per-request "
-        "heuristic, as in the paper)", check=POSITIVE_NUMBER, optional=True)
-    load_peak_users: float | None = setting(
-        None, "load level: background users on a server at its busiest minute (0 = idle, 4 = full at "
-        "the peak; default: the preset world's, recorded in run.json)", check=NON_NEGATIVE_NUMBER, optional=True)
-    target_compute: str | None = setting(
-        None, "C(s_j) of Eq. 4: 'request', the median compute time at ν of the request's own input, "
-        "or 'trace_median', the compute trace's median at ν for every request (default: the preset "
-        "world's; deviation D11 in the documentation)", check=one_of(TARGET_COMPUTES), optional=True)
-    baseline_reading: str | None = setting(
-        None, "how MinLoad-x and MinProp-x choose: 'paper-text', the x best of all servers (§V-B), "
-        "or 'original-code', the x best of three drawn at random per request, as the code behind "
-        "the paper's numbers did (default: the preset world's; calibration rule 5 in the "
-        "documentation)", check=one_of(BASELINE_READINGS), optional=True)
+@dataclass(frozen=True)
+class FailuresAndPower:
+    """Which servers fail, how long a user waits, what the servers draw (beyond the paper;
+    docs/failures_energy.md). None everywhere: no server fails, no time-out, and the energy
+    models' cited defaults."""
 
-
-    # Failures and energy (beyond the paper; docs/failures_energy.md). None everywhere: no
-    # server fails, no time-out, and the energy models' cited defaults.
     failure_mttf_s: float | None = setting(
         None, "each server's mean time to failure in seconds (exponential up and down times, "
         "each server starting in its stationary state; default: servers never fail)",
@@ -195,6 +169,13 @@ class WorldSetup:
 
 
 @dataclass(frozen=True)
+class WorldSetup(FailuresAndPower, WorldOverrides, WorldInputs):
+    """The world the run happens in: its inputs, the run's overrides of the world's settings
+    (``settings.world``, shared with the contention world) and its failures and power models,
+    fields in that order."""
+
+
+@dataclass(frozen=True)
 class LearnerOverrides:
     """SafeTail's hyperparameters that replace its preset's. Each field is named as the
     :class:`~yafs_safetail.methods.safetail.presets.LearnerConfig` field it replaces; None keeps
@@ -217,20 +198,21 @@ class LearnerOverrides:
         None, "beyond the paper: SafeTail's learner, target-vector (the paper's §III, the default) or "
         "value (the network regresses each action's latency score, less the D15 prices when set, "
         "and copies to busy servers are priced at dispatch: the contention world's SafeTail-CA "
-        "learner; deviations D13, D15 in the documentation)", check=one_of(OBJECTIVES), flag="--learner",
-        optional=True)
+        "learner; deviations D13, D15 in the documentation)", check=one_of(OBJECTIVES),
+        optional=True, deprecated=("--learner",))
     n_networks: int | None = setting(
-        None, "with --learner value: how many value networks, each from its own initial weights, "
+        None, "with --objective value: how many value networks, each from its own initial weights, "
         "SafeTail averages (default 1; deviation D13 in the documentation)", check=POSITIVE_INTEGER,
         flag="--value-networks", optional=True)
 
 
-#: Result fields added after run ids were first recorded: a run id leaves each out while it is
-#: at its default (None), so every configuration that does not use them keeps its id.
-LATER_RESULT_FIELDS: tuple[str, ...] = (
-    "failure_mttf_s", "failure_mttr_s", "failure_probability", "down_intervals", "timeout_s",
-    "server_idle_w", "server_max_w", "energy_price_per_j", "failure_penalty", "objective", "n_networks",
-    "baseline_reading")
+#: The result fields run ids were first recorded with. Every later one (a setting added since) is
+#: left out of a run id while it is at its default, so every configuration that does not use it
+#: keeps its id: a new setting needs no entry here.
+FIRST_RESULT_FIELDS: tuple[str, ...] = (
+    "use_case", "preset", "seed", "steps_scale", "redundancy_levels", "methods", "policy", "topology",
+    "placement", "traces_dir", "step_interval_s", "world", "target_latency_s", "load_peak_users",
+    "target_compute", "learning_rate", "write_yafs_csv", "figures")
 
 
 @dataclass(frozen=True)
@@ -241,7 +223,8 @@ class Output:
     out_dir: Path = setting(Path("results/uc1"), "results folder, written only when the run succeeds; "
                             "never replaced unless --overwrite", changes_results=False, flag="--out")
     write_yafs_csv: bool = setting(False, "also write each method's YAFS result CSVs under yafs/ (~70 MB for UC1)",
-                                   check=BOOLEAN, flag="--yafs-csv", action="store_true")
+                                   check=BOOLEAN, flag="--yafs-csv", action="store_true",
+                                   negation="--no-yafs-csv")
     figures: bool = setting(True, "skip the figures", check=BOOLEAN, flag="--no-figures", action="store_false")
     # Which copies of the same figures: not part of the run id, like the run's log.
     figure_formats: tuple[str, ...] = setting(
@@ -276,6 +259,9 @@ class ExperimentConfig(Output, LearnerOverrides, WorldSetup, Task):
     :class:`LearnerOverrides` and :class:`Output` together (their fields, in that order). The
     same configuration gives identical results files."""
 
+    #: What check_config raises for a bad field.
+    setting_error: ClassVar[type[ValueError]] = ExperimentError
+
 
 #: The groups of :class:`ExperimentConfig`, in the order a reader meets them.
 GROUPS: tuple[type, ...] = (Task, WorldSetup, LearnerOverrides, Output)
@@ -284,103 +270,14 @@ RESULT_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig) 
 #: Fields that say where a run goes and how it shows itself, never what it computes.
 RUNTIME_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig)
                                         if not setting_of(f).changes_results)
+#: Result fields added after run ids were first recorded (hashed only when set).
+LATER_RESULT_FIELDS: tuple[str, ...] = tuple(name for name in RESULT_FIELDS if name not in FIRST_RESULT_FIELDS)
 #: Runtime fields a campaign grid may still set (e.g. the figures' formats); not in the run id.
 GRID_RUNTIME_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentConfig)
                                              if setting_of(f).in_grid)
 
 
-# ----------------------------------------------------------------------------- derived
-
-
-def _fields_of(config_class: type, only: Iterable[str] | None,
-               exclude: Iterable[str] = ()) -> list[dataclasses.Field[Any]]:
-    every = {f.name: f for f in fields(config_class)}
-    if only is None:
-        left_out = set(exclude)
-        return [f for f in every.values()
-                if f.name not in left_out and has_setting(f) and setting_of(f).option(f.name)]
-    unknown = [name for name in only if name not in every]
-    if unknown:
-        raise TypeError(f"{config_class.__name__} has no field {unknown[0]!r}")
-    return [every[name] for name in only]
-
-
-def add_options(parser: argparse._ActionsContainer, config_class: type = ExperimentConfig,
-                only: Iterable[str] | None = None, exclude: Iterable[str] = (),
-                **changes: Mapping[str, Any]) -> None:
-    """Add the command-line options of a configuration's fields to ``parser``.
-
-    Each option's destination is the field's name, so :func:`config_from_args` can read it.
-
-    Args:
-        parser: the parser (or an argument group of it).
-        config_class: a dataclass whose fields were declared with :func:`setting`.
-        only: the fields to add, in this order (None: every field that has an option).
-        exclude: with ``only=None``, fields not to add (a script adding the rest of the fields,
-            so that a field declared later becomes its option too).
-        changes: per field, argparse keywords that differ in this script (``default``,
-            ``help``, ``required``, ``type``...).
-    """
-    for item in _fields_of(config_class, only, exclude):
-        about = setting_of(item)
-        flag = about.option(item.name)
-        if not flag:
-            raise TypeError(f"{item.name}: has no command-line option")
-        keywords: dict[str, Any] = {"dest": item.name, "help": about.help}
-        if about.action in ("store_true", "store_false"):
-            keywords["action"] = about.action
-        else:
-            keywords["default"] = item.default
-            if about.action == "append":
-                keywords.update(action="append", default=[])
-            elif about.check is not None and about.check.choices is not None:
-                keywords["choices"] = about.check.choices
-                if about.check.parse is not None:
-                    keywords["type"] = about.check.parse
-            elif about.check is not None and about.check.parse is not None:
-                keywords["type"] = about.check.parse
-            elif item.type in ("Path", "Path | None"):
-                keywords["type"] = Path
-            if about.metavar is not None:
-                keywords["metavar"] = about.metavar
-            elif "choices" not in keywords:  # named after the option, as argparse would
-                keywords["metavar"] = flag.lstrip("-").replace("-", "_").upper()
-        keywords.update(changes.get(item.name, {}))
-        parser.add_argument(flag, **keywords)
-
-
-def config_from_args(args: argparse.Namespace, config_class: type = ExperimentConfig,
-                     **values: Any) -> Any:
-    """A configuration from parsed options: every field :func:`add_options` added, then
-    ``values`` (what the script sets itself: the command, the output folder...)."""
-    found: dict[str, Any] = {}
-    for item in fields(config_class):
-        if item.name in values or not hasattr(args, item.name):
-            continue
-        value = getattr(args, item.name)
-        convert = setting_of(item).from_cli
-        found[item.name] = value if convert is None else convert(value)
-    return config_class(**found, **values)
-
-
-def check_config(config: Any, style: str = "option") -> None:
-    """Check every field of a configuration against its :class:`Setting`.
-
-    Args:
-        config: a dataclass whose fields were declared with :func:`setting`.
-        style: how errors name a field: ``"option"`` (``--steps-scale``, for runs) or
-            ``"field"`` (``steps_scale``, for Python APIs such as the Gymnasium environment).
-
-    Raises:
-        ExperimentError: the first bad field (one line: its name, what it accepts, its value).
-    """
-    for item in fields(config):
-        about = setting_of(item)
-        value = getattr(config, item.name)
-        if about.check is None or (value is None and about.optional):
-            continue
-        if not about.check.accepts(value):
-            raise ExperimentError(f"{about.label(item.name, style)}: expected {about.check.what}, got {value!r}")
+# ----------------------------------------------------------------------------- the learner
 
 
 def learner_overrides(config: LearnerOverrides) -> dict[str, Any]:

@@ -1,0 +1,160 @@
+"""What the sweep commands share (``load_sweep``, ``failure_sweep``; ``training_mechanism``
+takes the world's options from here too): their options, derived from the declarations of
+``contention.config.ContentionConfig`` and ``contention.sweep_config``, the world every point
+shares, the checks that parsing alone cannot make, and the campaign every sweep is.
+
+Not a command. Light at import, as every command's options must be (``tests/test_first_answer.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from yafs_safetail import __version__
+from yafs_safetail.cli import add_plumbing, add_verbosity_options
+from yafs_safetail.contention.config import ContentionConfig, ContentionError
+from yafs_safetail.contention.sweep_config import SWEEP_WORLD, ContentionSweep
+from yafs_safetail.runs.engine_options import add_engine_options
+from yafs_safetail.settings.declare import add_options, config_from_args
+from yafs_safetail.versions import run_json_fields
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from yafs_safetail.runs.grid import RunSpec
+
+#: The sweep's settings given as options beside the axis's (each declared once in
+#: contention.sweep_config), in the order --help lists them.
+LEARNER_OPTIONS = ("steps_scale", "test_requests_per_load", "preset", "reward", "target", "objectives",
+                   "n_networks", "dispatch")
+#: The world's options every sweep opens with; the rest of the world's follow the learners'.
+FIRST_WORLD_OPTIONS = ("use_case", "users")
+
+
+def add_users_options(parser: argparse.ArgumentParser) -> None:
+    """--uc and --users, every sweep's first options."""
+    add_options(parser, ContentionConfig, only=FIRST_WORLD_OPTIONS, defaults=SWEEP_WORLD)
+
+
+def add_world_options(parser: argparse.ArgumentParser) -> None:
+    """Every other option of the contention world (servers, links, users' conditions, the input
+    files, the world's overrides): each ContentionConfig field with an option, the seed aside
+    (each command says how its seeds are given)."""
+    add_options(parser, ContentionConfig, exclude=(*FIRST_WORLD_OPTIONS, "seed"), defaults=SWEEP_WORLD)
+
+
+def add_output_options(parser: argparse.ArgumentParser, config_class: type[ContentionSweep]) -> None:
+    """The methods, where the sweep goes and how it runs (every sweep's last options)."""
+    add_options(parser, config_class, only=("methods", "safetail"))
+    add_plumbing(parser, "--out", type=Path, required=True, help="new output folder")
+    add_plumbing(parser, "--overwrite", action="store_true",
+                 help="replace point folders there that hold another configuration's results")
+    add_engine_options(parser)
+    add_verbosity_options(parser)
+
+
+def contention_base(args: argparse.Namespace, seed: int) -> ContentionConfig:
+    """The contention world every point of a sweep shares, from the options."""
+    base: ContentionConfig = config_from_args(args, ContentionConfig, seed=seed)
+    return base
+
+
+def check_methods(config: ContentionSweep) -> None:
+    """The methods' names, which parsing alone cannot check, as a one-line error before anything
+    runs; and --value-networks without the value learner."""
+    import numpy as np
+
+    from yafs_safetail.methods.registry import make_baseline
+
+    for name in config.methods:  # unknown names fail before anything runs
+        make_baseline(name, 5, np.random.default_rng(0))
+
+
+def check_value_networks(args: argparse.Namespace) -> None:
+    """--value-networks only with the value learner (one line, before the sweep is built)."""
+    if args.n_networks is not None and "value" not in args.objectives:
+        raise ContentionError(f"--value-networks {args.n_networks}: only with the value learner "
+                              "(SafeTail-CA)")
+
+
+def check_test_requests(args: argparse.Namespace, config: ContentionSweep) -> None:
+    """Enough test requests per point for a p99 (a one-line ContentionError otherwise)."""
+    if config.test_requests < 100:
+        flag = "--test-requests" if args.test_requests_per_load is not None else f"--steps-scale {args.steps_scale}"
+        raise ContentionError(f"{flag}: {config.test_requests} test requests per {config.axis.label}; "
+                              "at least 100 are needed for a p99")
+
+
+def is_sweep_folder(folder: Path, kind: str, runs: tuple[str, ...]) -> bool:
+    """A folder a sweep command made for ``kind``: a campaign's state file, and a sweep's
+    run.json of that kind or nothing but the campaign's files and its run folders (named with
+    one of ``runs``), so another campaign's folder or a results folder is never written into."""
+    from yafs_safetail.runs.campaign import STATE_FILE
+
+    if not (folder / STATE_FILE).is_file():
+        return False
+    if not (folder / "run.json").exists():
+        # Interrupted before the table was assembled: only the campaign's files and run folders.
+        return all(item.name.startswith((*runs, "campaign.", ".campaign.")) for item in folder.iterdir())
+    try:
+        return json.loads((folder / "run.json").read_text()).get("kind") == kind
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def check_out(out: Path, kind: str, runs: tuple[str, ...], what: str) -> None:
+    """``--out`` is new, empty, or this kind of sweep's folder (``what`` names it in the error)."""
+    if out.exists() and any(out.iterdir()) and not is_sweep_folder(out, kind, runs):
+        raise ContentionError(f"--out {out}: exists and is not {what}'s folder; give a new folder")
+
+
+def run_points(out: Path, specs: Mapping[int, Sequence[RunSpec]], args: argparse.Namespace,
+               command: str) -> dict[int, pd.DataFrame] | None:
+    """Every point of every seed's sweep as one campaign into ``out`` (each point cached by its
+    configuration's hash, resumable, on any engine); each seed's rows read back from its points'
+    folders, in point order. None when a point failed (the campaign has said which)."""
+    import pandas as pd
+
+    from yafs_safetail.runs.campaign import run_campaign
+    from yafs_safetail.runs.output import SWEEP_FILE
+
+    result = run_campaign([spec for seed_specs in specs.values() for spec in seed_specs], out, engine=args.engine,
+                          workers=args.workers, ray_address=args.ray_address, command=command,
+                          overwrite=args.overwrite)
+    if result.failed:
+        return None
+    return {seed: pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in seed_specs], ignore_index=True)
+            for seed, seed_specs in specs.items()}
+
+
+def servers_word(base: ContentionConfig) -> str:
+    """What a full server does, as --servers says it (the reports' and run.json's word)."""
+    return "queue" if base.queue else "refuse"
+
+
+def sweep_run_json(config: ContentionSweep, command: str, kind: str, specs: Sequence[RunSpec],
+                   **axis: Any) -> dict[str, Any]:
+    """A sweep folder's run.json: the command, the axis's settings (``axis``, in order after the
+    use case and users), the world's and the methods', and each point's run id."""
+    base = config.base
+    return {
+        "package_version": __version__, **run_json_fields(), "command": command, "kind": kind,
+        "use_case": base.use_case, "users": base.users, **axis, "seed": base.seed,
+        "steps_scale": config.steps_scale, "target": config.target,
+        "safetails": [asdict(variant) for variant in config.safetails],
+        "servers": servers_word(base), "cancel": base.cancel, "background": base.background, "links": base.links,
+        "methods": list(config.methods), "test_requests": config.test_requests,
+        "topology": str(base.topology),
+        "placement": str(base.placement), "user_conditions": str(base.user_conditions),
+        f"{config.axis.folder}_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}
+
+
+def safetail_lines(config: ContentionSweep) -> str:
+    """How each SafeTail of the sweep learns and sends, one line each (none: fixed methods only)."""
+    lines = [f"{variant.name}: {variant.describe()}, target `{config.target}`." for variant in config.safetails]
+    return "".join(f"{line}\n\n" for line in lines)

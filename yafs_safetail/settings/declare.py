@@ -1,0 +1,473 @@
+"""How a setting is declared, and what is derived from the declarations.
+
+A setting is a field of a frozen configuration dataclass declared with :func:`setting`: its
+name and type are the field's, and its :class:`Setting` says the rest (default, help text,
+:class:`Check`, whether it changes the results, its command-line option). Every configuration of
+the project declares its fields this way (``settings.experiment.ExperimentConfig``,
+``settings.world.WorldOverrides``, ``contention.config.ContentionConfig``, the sweeps'
+``contention.sweep_config``); a configuration that means the same thing as another's field takes
+that declaration with :func:`same_as` instead of writing it again.
+
+Derived here, for any such configuration: the command-line options (:func:`add_options`, and a
+comma-separated list of one setting's values, :func:`add_list_options`), the configuration from
+parsed options (:func:`config_from_args`), the checks (:func:`check_config`), keyword arguments
+from Python (:func:`config_from_keywords`) and the settings a run changed (:func:`changed_settings`).
+
+Only light modules here: the scripts build their parsers from these before NumPy, pandas, simpy
+or TensorFlow load (``tests/test_first_answer.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import re
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from yafs_safetail.defaults import FIGURE_FORMATS, figure_formats
+from yafs_safetail.settings.parse import (
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
+
+
+class SettingError(ValueError):
+    """A bad setting (one line naming its option or field, what it accepts and the value)."""
+
+# ----------------------------------------------------------------------------- checks
+
+
+@dataclass(frozen=True)
+class Check:
+    """What values a setting accepts, for the command line and for values set in Python.
+
+    Attributes:
+        what: the accepted values in words (``"a positive number"``), for error messages.
+        accepts: whether a Python value is acceptable (``None`` is handled by the caller).
+        parse: the argparse ``type``: text to value, raising ``argparse.ArgumentTypeError``.
+        choices: the accepted values when they are a short list (argparse shows them).
+    """
+
+    what: str
+    accepts: Callable[[Any], bool]
+    parse: Callable[[str], Any] | None = None
+    choices: tuple[Any, ...] | None = None
+
+
+def _is_number(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, float | int) and math.isfinite(value)
+
+
+def _is_integer(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, int)
+
+
+POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, positive_float)
+NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: _is_number(v) and v >= 0,
+                            non_negative_float)
+POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, positive_int)
+NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: _is_integer(v) and v >= 0,
+                             non_negative_int)
+BOOLEAN = Check("true or false", lambda v: isinstance(v, bool))
+
+
+def one_of(choices: Sequence[Any], parse: Callable[[str], Any] | None = None) -> Check:
+    """A check for one of a few values (argparse lists them; ``parse`` turns text into one)."""
+    listed = ", ".join(str(c) for c in choices)
+    return Check(f"one of {listed}", lambda v: not isinstance(v, bool) and v in choices, parse, tuple(choices))
+
+
+def _redundancy_levels(text: str) -> tuple[int, ...]:
+    try:
+        levels = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not levels:
+        raise argparse.ArgumentTypeError("expected at least one level")
+    return levels
+
+
+#: Redundancy levels: their range depends on the topology, checked when it is read.
+FORMATS = Check(f"a list of {', '.join(FIGURE_FORMATS)}",
+                lambda v: isinstance(v, tuple) and bool(v) and all(x in FIGURE_FORMATS for x in v),
+                figure_formats)
+LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_integer(x) for x in v),
+               _redundancy_levels)
+
+
+def _probability_below_one(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}") from None
+    if not 0.0 <= value < 1.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}")
+    return value
+
+
+#: A server's stationary unavailability: 1 would be a server that is never up.
+PROBABILITY_BELOW_ONE = Check(
+    "a probability in [0, 1)",
+    lambda v: not isinstance(v, bool) and isinstance(v, float | int) and math.isfinite(v) and 0 <= v < 1,
+    _probability_below_one)
+
+
+
+# ----------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True)
+class Setting:
+    """What the project knows about one field of a configuration.
+
+    Attributes:
+        help: what it means, as the command line's help shows it.
+        changes_results: whether two runs differing in it may write different results files
+            (part of the run id). Where and how a run goes (its folder, processes, progress,
+            resuming) does not.
+        check: the values it accepts (None: any value of its type).
+        flag: its command-line option; None: ``--`` and the name with dashes. ``""``: none
+            (set from Python or a grid only).
+        optional: None is a valid value (the preset's or the world's own).
+        action: an argparse action instead of a typed value (``"store_true"``, ``"store_false"``
+            for a ``--no-...`` flag, ``"append"``).
+        metavar: the option's value placeholder in the help.
+        from_cli: turns the parsed value into the field's value (e.g. specs into methods).
+        in_grid: a campaign grid may set it although it does not change the results (which
+            copies of the figures a run draws); it stays out of the run id.
+        negation: for a flag (``store_true``), an option that says its default explicitly, the
+            two mutually exclusive (kept for scripts that passed it).
+        deprecated: older spellings of its option that still work, each saying on stderr that it
+            is deprecated and which option replaces it (kept only while documented commands of
+            earlier versions may use them).
+    """
+
+    help: str
+    changes_results: bool = True
+    check: Check | None = None
+    flag: str | None = None
+    optional: bool = False
+    action: str | None = None
+    metavar: str | None = None
+    from_cli: Callable[[Any], Any] | None = None
+    in_grid: bool = False
+    negation: str | None = None
+    deprecated: tuple[str, ...] = ()
+
+    def option(self, name: str) -> str:
+        """The command-line option of the field ``name`` (``--steps-scale``), or ``""``."""
+        return f"--{name.replace('_', '-')}" if self.flag is None else self.flag
+
+    def label(self, name: str, style: str) -> str:
+        """How an error names the field ``name``: its option in the ``"option"`` style (when it
+        has one), else the field's own name (the ``"field"`` style, for Python APIs)."""
+        return (self.option(name) or name) if style == "option" else name
+
+
+_SETTING = "yafs_safetail.setting"
+
+
+def setting(default: Any, help: str, **kwargs: Any) -> Any:
+    """A dataclass field with its :class:`Setting` (``kwargs`` are the Setting's)."""
+    return field(default=default, metadata={_SETTING: Setting(help=help, **kwargs)})
+
+
+def same_as(config_class: type, name: str, default: Any = dataclasses.MISSING, **changes: Any) -> Any:
+    """A field declared as ``config_class``'s field ``name`` is: the same setting in another
+    configuration (``ContentionConfig.use_case`` is ``Task.use_case``), so its help, check and
+    option are written once. The type annotation is restated for the type checker.
+
+    Args:
+        config_class: the configuration that declares the setting.
+        name: its field there.
+        default: this configuration's default, when it differs (e.g. None where the other
+            configuration has a file).
+        changes: :class:`Setting` attributes that differ here (``flag=""``: no option).
+    """
+    item = field_of(config_class, name)
+    about = dataclasses.replace(setting_of(item), **changes)
+    return field(default=item.default if default is dataclasses.MISSING else default, metadata={_SETTING: about})
+
+
+def field_of(config_class: type, name: str) -> dataclasses.Field[Any]:
+    """The field ``name`` of a configuration class (TypeError: it has none)."""
+    for item in fields(config_class):
+        if item.name == name:
+            return item
+    raise TypeError(f"{config_class.__name__} has no field {name!r}")
+
+
+def setting_of(item: dataclasses.Field[Any]) -> Setting:
+    """The :class:`Setting` of a configuration field."""
+    found = item.metadata.get(_SETTING)
+    if not isinstance(found, Setting):
+        raise TypeError(f"{item.name}: a configuration field must be declared with setting()")
+    return found
+
+
+def has_setting(item: dataclasses.Field[Any]) -> bool:
+    """Whether a configuration field was declared with :func:`setting`."""
+    return isinstance(item.metadata.get(_SETTING), Setting)
+
+
+def changed_settings(config: Any, skip: Sequence[str] = ()) -> tuple[str, ...]:
+    """The settings of ``config`` that change results and were set away from their defaults, as
+    the options that set them (``--failure-probability 0.2``, ``--topology mesh.json``): what a
+    run's figure titles and report heading add to its use case, preset and seed (``skip``).
+
+    Files are named by their file name; a setting left at its default is never listed, so a
+    run with none set says nothing more than before.
+    """
+    changed: list[str] = []
+    for item in dataclasses.fields(config):
+        if not has_setting(item) or item.name in skip:
+            continue
+        about = setting_of(item)
+        if not about.changes_results:
+            continue
+        default = item.default if item.default is not dataclasses.MISSING else (
+            item.default_factory() if item.default_factory is not dataclasses.MISSING else dataclasses.MISSING)
+        value = getattr(config, item.name)
+        if value == default:
+            continue
+        option = about.option(item.name) or item.name
+        if isinstance(value, bool):
+            changed.append(option)
+            continue
+        shown = _shown(value)
+        changed.append(f"{option} {shown}")
+    return tuple(changed)
+
+
+def _shown(value: Any) -> str:
+    """A setting's value as a title shows it: the same text for the same value in any run
+    (file names without their folders; a user's method by its spec; never an object's repr)."""
+    if isinstance(value, Path):
+        return value.name
+    if isinstance(value, tuple | list):
+        return ",".join(_shown(item) for item in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, str | int):
+        return str(value)
+    spec = getattr(value, "spec", None)  # a user's --method NAME=path/file.py:Class
+    if isinstance(spec, str):
+        return re.sub(r"[^=:]*/", "", spec)
+    return type(value).__name__
+
+
+# ----------------------------------------------------------------------------- derived
+
+
+def _fields_of(config_class: type, only: Iterable[str] | None,
+               exclude: Iterable[str] = ()) -> list[dataclasses.Field[Any]]:
+    if only is None:
+        left_out = set(exclude)
+        return [f for f in fields(config_class)
+                if f.name not in left_out and has_setting(f) and setting_of(f).option(f.name)]
+    return [field_of(config_class, name) for name in only]
+
+
+class _DeprecatedOption(argparse.Action):
+    """An older spelling of an option: stores as the option does, and says what replaces it."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, replacement: str = "",
+                 **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, **kwargs)
+        self.replacement = replacement
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        # On stderr at once: logging is set up only after the arguments are parsed.
+        print(f"warning: {option_string} is deprecated; use {self.replacement}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def _value_keywords(item: dataclasses.Field[Any], about: Setting, flag: str) -> dict[str, Any]:
+    """How argparse reads one value of a setting: its type, choices and placeholder."""
+    keywords: dict[str, Any] = {}
+    if about.check is not None and about.check.choices is not None:
+        keywords["choices"] = about.check.choices
+        if about.check.parse is not None:
+            keywords["type"] = about.check.parse
+    elif about.check is not None and about.check.parse is not None:
+        keywords["type"] = about.check.parse
+    elif item.type in ("Path", "Path | None"):
+        keywords["type"] = Path
+    if about.metavar is not None:
+        keywords["metavar"] = about.metavar
+    elif "choices" not in keywords:  # named after the option, as argparse would
+        keywords["metavar"] = flag.lstrip("-").replace("-", "_").upper()
+    return keywords
+
+
+def add_options(parser: argparse._ActionsContainer, config_class: type,
+                only: Iterable[str] | None = None, exclude: Iterable[str] = (),
+                defaults: Any = None, **changes: Mapping[str, Any]) -> None:
+    """Add the command-line options of a configuration's fields to ``parser``.
+
+    Each option's destination is the field's name, so :func:`config_from_args` can read it.
+
+    Args:
+        parser: the parser (or an argument group of it).
+        config_class: a dataclass whose fields were declared with :func:`setting`.
+        only: the fields to add, in this order (None: every field that has an option).
+        exclude: with ``only=None``, fields not to add (a script adding the rest of the fields,
+            so that a field declared later becomes its option too).
+        defaults: an instance of ``config_class`` whose values are this command's defaults
+            (its own starting point, e.g. the load sweep's 50 users); None: the declarations'.
+        changes: per field, argparse keywords that differ in this script (``default``,
+            ``help``, ``required``...).
+
+    Raises:
+        TypeError: a field without an option, or a flag that could only set its default.
+    """
+    for item in _fields_of(config_class, only, exclude):
+        about = setting_of(item)
+        flag = about.option(item.name)
+        if not flag:
+            raise TypeError(f"{item.name}: has no command-line option")
+        default = item.default if defaults is None else getattr(defaults, item.name)
+        keywords: dict[str, Any] = {"dest": item.name, "help": about.help}
+        if about.action in ("store_true", "store_false"):
+            if default != (about.action == "store_false"):
+                raise TypeError(f"{item.name}: {flag} would only set its default {default!r}")
+            keywords.update(action=about.action, default=default)
+            if about.negation is not None:  # the flag and its explicit default, one or the other
+                both = parser.add_mutually_exclusive_group()
+                both.add_argument(flag, **keywords, **changes.get(item.name, {}))
+                both.add_argument(about.negation, dest=item.name, default=default,
+                                  action="store_false" if about.action == "store_true" else "store_true",
+                                  help=f"the default, without {flag} (kept for older scripts)")
+                continue
+        elif about.action == "append":
+            keywords.update(action="append", default=[])
+        else:
+            keywords["default"] = default
+            keywords.update(_value_keywords(item, about, flag))
+            if default != item.default and not isinstance(default, bool):  # the command's own default
+                keywords["help"] = f"{about.help} (default here: {_shown(default)})"
+        keywords.update(changes.get(item.name, {}))
+        parser.add_argument(flag, **keywords)
+        for alias in about.deprecated:  # hidden from --help: only the option to use is listed
+            old = {key: value for key, value in keywords.items() if key not in ("action", "help")}
+            parser.add_argument(alias, action=_DeprecatedOption, replacement=flag, help=argparse.SUPPRESS, **old)
+
+
+def add_list_options(parser: argparse._ActionsContainer, config_class: type, flags: Mapping[str, str],
+                     ascending: bool = False, **changes: Mapping[str, Any]) -> None:
+    """Options that take several values of one setting, comma-separated (``--seeds 0,1,2`` for
+    the setting ``seed``): each value read and checked as the setting's own option reads and
+    checks one, none given twice. The destination is the option's name (``seeds``).
+
+    Args:
+        parser: the parser (or an argument group of it).
+        config_class: the configuration that declares the settings.
+        flags: setting name -> the option taking a list of its values.
+        ascending: return the values sorted (a grid whose order does not matter).
+        changes: per setting, argparse keywords of the list option (``default``, ``help``);
+            the default is None unless given.
+    """
+    for name, flag in flags.items():
+        item = field_of(config_class, name)
+        about = setting_of(item)
+        one = _value_keywords(item, about, about.option(name) or flag)
+        keywords: dict[str, Any] = {
+            "dest": flag.lstrip("-").replace("-", "_"), "default": None,
+            "help": f"several values of {about.option(name) or name}, comma-separated: {about.help}",
+            "type": _list_of(about, one.get("type"), one.get("choices"), ascending),
+            "metavar": f"{one.get('metavar', name.upper())},..."}
+        keywords.update(changes.get(name, {}))
+        parser.add_argument(flag, **keywords)
+
+
+def _list_of(about: Setting, parse: Callable[[str], Any] | None, choices: Sequence[Any] | None,
+             ascending: bool) -> Callable[[str], tuple[Any, ...]]:
+    """The argparse type of a list option: every value as the one-value option reads it."""
+    def read(text: str) -> tuple[Any, ...]:
+        values = []
+        for part in (part.strip() for part in text.split(",")):
+            value = part if parse is None else parse(part)  # its own ArgumentTypeError
+            if (choices is not None and value not in choices) or (
+                    about.check is not None and not about.check.accepts(value)):
+                what = about.check.what if about.check is not None else "one of " + ", ".join(map(str, choices or ()))
+                raise argparse.ArgumentTypeError(f"{part!r}: expected {what}")
+            values.append(value)
+        repeated = sorted({str(v) for v in values if values.count(v) > 1})
+        if repeated:
+            raise argparse.ArgumentTypeError(f"{repeated[0]} is given twice in {text!r}")
+        return tuple(sorted(values)) if ascending else tuple(values)
+    return read
+
+
+def config_from_args(args: argparse.Namespace, config_class: type, **values: Any) -> Any:
+    """A configuration from parsed options: every field with an option that :func:`add_options`
+    added, then ``values`` (what the script sets itself: the command, the output folder...)."""
+    found: dict[str, Any] = {}
+    for item in fields(config_class):
+        if item.name in values or not hasattr(args, item.name) or not setting_of(item).option(item.name):
+            continue
+        value = getattr(args, item.name)
+        convert = setting_of(item).from_cli
+        found[item.name] = value if convert is None else convert(value)
+    return config_class(**found, **values)
+
+
+def check_config(config: Any, style: str = "option") -> None:
+    """Check every field of a configuration against its :class:`Setting`.
+
+    Args:
+        config: a dataclass whose fields were declared with :func:`setting`.
+        style: how errors name a field: ``"option"`` (``--steps-scale``, for runs) or
+            ``"field"`` (``steps_scale``, for Python APIs such as the Gymnasium environment).
+
+    Raises:
+        SettingError: the first bad field (one line: its name, what it accepts, its value), as
+            the configuration's own error class (its ``setting_error``) when it has one.
+    """
+    error: type[ValueError] = getattr(type(config), "setting_error", SettingError)
+    for item in fields(config):
+        if not has_setting(item):  # a part checked on its own (a sweep's base world)
+            continue
+        about = setting_of(item)
+        value = getattr(config, item.name)
+        if about.check is None or (value is None and about.optional):
+            continue
+        if not about.check.accepts(value):
+            raise error(f"{about.label(item.name, style)}: expected {about.check.what}, got {value!r}")
+
+
+def keyword_names(*groups: type) -> tuple[str, ...]:
+    """Every field of ``groups``, in order: the keyword arguments a Python API derives from them."""
+    return tuple(item.name for group in groups for item in fields(group))
+
+
+def config_from_keywords(config_class: type, keywords: Mapping[str, Any], allowed: Sequence[str],
+                         what: str, **values: Any) -> Any:
+    """A configuration from a Python API's keyword arguments (a Gymnasium environment's).
+
+    Paths may be given as text, as everywhere in Python; an unknown keyword is a one-line
+    :class:`SettingError` naming it and ``what`` takes.
+
+    Args:
+        config_class: the configuration.
+        keywords: the caller's keywords.
+        allowed: the fields the API takes.
+        what: the API, for the error (``"SafeTail-v0"``).
+        values: fields the API sets itself.
+    """
+    unknown = sorted(set(keywords) - set(allowed))
+    if unknown:
+        raise SettingError(f"{unknown[0]}: not a setting of {what} (its settings: {', '.join(allowed)})")
+    typed = dict(keywords)
+    for item in fields(config_class):
+        if item.name in typed and item.type in ("Path", "Path | None") and isinstance(typed[item.name], str):
+            typed[item.name] = Path(typed[item.name])
+    return config_class(**typed, **values)
