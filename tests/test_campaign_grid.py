@@ -18,7 +18,7 @@ from yafs_safetail.commands import campaign as campaign_command
 from yafs_safetail.defaults import DATA_ROOT, DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.runs.campaign import STATE_FILE, recorded_run_id
 from yafs_safetail.runs.grid import GridError, expand, load_grid
-from yafs_safetail.runs.input_paths import packaged_default, resolve_input
+from yafs_safetail.settings.input_paths import packaged_default, resolve_input
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 EXAMPLE_POLICY = REPOSITORY / "examples" / "custom_policy" / "nearest_free.py"
@@ -41,6 +41,7 @@ def folder(tmp_path: Path) -> Path:
     (tmp_path / "boom.py").write_text("raise RuntimeError('boom')\n")
     (tmp_path / "broken.json").write_text("{\n")
     (tmp_path / "down.csv").write_text("server,down_s,up_s\n4,0,60\n")  # a fifth server's outage
+    (tmp_path / "walk.csv").write_text("time_s,x_m,y_m\n10,0,0\n5,1,0\n")  # back in time
     shutil.copy(THREE_SERVERS, tmp_path / "mine.json")
     return tmp_path
 
@@ -73,6 +74,9 @@ BAD_ENTRIES = {
                                   "axes.redundancy_levels[0]", "x=4 is more than its 3 edge servers"),
     "an outage on no server": ('topology = "topologies/3servers.json"\n', 'down_intervals = ["down.csv"]\n',
                                "axes.down_intervals[0]", "4 is not one of the 3 servers"),
+    "a route that goes back in time": ('topology = "topologies/campus_5servers.json"\nmobility = "route"\n',
+                                       'route = ["walk.csv"]\n', "axes.route[0]",
+                                       "walk.csv: point 2: time 5 s is before the previous point's (10 s)"),
     "a level above the default topology's servers": ("", "redundancy_levels = [[1, 6]]\n",
                                                      "axes.redundancy_levels[0]", "x=6 is more than its 5"),
     "a method file that is missing": ("", 'methods = [["missing.py:X"]]\n', "axes.methods[0]", "no such file"),

@@ -96,7 +96,7 @@ def test_the_run_id_hashes_the_result_fields_as_before():
     assert grid.SETTABLE_FIELDS == (*RESULT_FIELDS, "figure_formats")
     assert set(grid.RUNTIME_FIELDS) == {"out_dir", "progress", "command", "workers", "overwrite", "force",
                                         "run_id", "resume", "checkpoint_every_s", "figure_formats"}
-    assert set(grid.PATH_FIELDS) == {"topology", "placement", "traces_dir", "policy", "down_intervals"}
+    assert set(grid.PATH_FIELDS) == {"topology", "placement", "traces_dir", "policy", "down_intervals", "route"}
     with mock.patch.object(grid, "code_version", lambda: "0.0.0+git.test"), \
             mock.patch.object(grid, "_digest", lambda path: "digest"):
         assert grid.config_run_id(ExperimentConfig()) == "a89f6bb8a559"

@@ -30,6 +30,7 @@ DATA_ROOT = PACKAGED_DATA if PACKAGED_DATA.is_dir() else _PACKAGE.parent
 DATA_FILES: dict[str, tuple[str, ...]] = {
     "topologies": ("*.json",),
     "placements": ("*.json",),
+    "routes": ("*.csv", "*.gpx"),
     "traces": ("*.csv", "README.md", "models/*.npz", "models/*.json", "models/*.keras"),
 }
 #: The lock: the exact library versions the published numbers and the golden files need
@@ -69,6 +70,10 @@ TARGET_COMPUTES = ("trace_median", "request")
 #: written (the x best of all n servers); ``original-code``, as the code that produced the
 #: paper's numbers chose (three servers drawn at random per request, sorted stably, the first x).
 BASELINE_READINGS = ("paper-text", "original-code")
+#: How the user moves (edge.mobility; docs/mobility.md): not at all, random waypoint, a route file.
+MOBILITY_MODELS = ("off", "random-waypoint", "route")
+#: Random waypoint's default speed range, m/s: walking.
+WALKING_SPEED_MPS = (1.0, 1.5)
 #: How many servers the original code's MinLoad-x and MinProp-x drew before sorting.
 ORIGINAL_CODE_CANDIDATES = 3
 #: Simulated time between two requests: one load-trace row (one minute) per step.

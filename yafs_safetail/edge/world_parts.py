@@ -18,6 +18,7 @@ from yafs_safetail.edge.calibration import WorldSettings
 from yafs_safetail.edge.energy import EnergyModel
 from yafs_safetail.edge.failures import FailureSettings
 from yafs_safetail.edge.inputs import TraceInputs, load_inputs, load_scenario_for
+from yafs_safetail.edge.movement import MobilityPlan
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase, get_use_case
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, DEFAULT_MAX_LOAD, EdgeWorld, build_world
@@ -44,12 +45,14 @@ class WorldParts:
     def draw(self, n_steps: int, seed: int, phase: str, *, episode_steps: int = DEFAULT_EPISODE_STEPS,
              max_load: int = DEFAULT_MAX_LOAD, failures: FailureSettings | None = None,
              energy: EnergyModel | None = None,
-             step_interval_s: float = DEFAULT_STEP_INTERVAL_S) -> EdgeWorld:
+             step_interval_s: float = DEFAULT_STEP_INTERVAL_S,
+             mobility: MobilityPlan | None = None) -> EdgeWorld:
         """The world of ``n_steps`` requests drawn from ``(seed, phase)`` (``edge.world.build_world``,
         whose documentation says what each option does; their defaults are its own)."""
         return build_world(self.scenario, self.use_case, self.inputs, n_steps, seed=seed, phase=phase,
                            episode_steps=episode_steps, max_load=max_load, settings=self.settings,
-                           failures=failures, energy=energy, step_interval_s=step_interval_s)
+                           failures=failures, energy=energy, step_interval_s=step_interval_s,
+                           mobility=mobility)
 
 
 class OnWorldParts:

@@ -16,7 +16,7 @@ combination, the first axis outermost. Written by hand as TOML, YAML or JSON::
 
 The whole grid is checked before any run starts (:func:`expand`, through
 ``runs.grid_checks.check_grid``): each bad entry is one line of the :class:`GridError`. Paths
-are resolved by ``runs.input_paths``: beside the grid file, else the packaged default of that
+are resolved by ``settings.input_paths``: beside the grid file, else the packaged default of that
 name; a topology without a placement gets ``placements/<topology file name>``, resolved the
 same way, as ``run`` does.
 
@@ -175,7 +175,7 @@ def expand(base: Mapping[str, Any], axes: Mapping[str, Sequence[Any]], name: str
         name: a folder-name template over the settings and ``{id}`` (``str.format``); None:
             the axes' values and the id, e.g. ``uc1-paper-seed0-<id>``.
         source: what to name in errors (the grid file).
-        folder: where the grid's relative paths are read from (``runs.input_paths``; the grid
+        folder: where the grid's relative paths are read from (``settings.input_paths``; the grid
             file's folder); None: the working folder (a command's own options).
 
     Raises:
@@ -219,7 +219,7 @@ def load_grid(path: Path) -> list[RunSpec]:
     """The runs of a grid file (``.toml``, ``.yaml``/``.yml`` or ``.json``), checked whole.
 
     Its relative paths are read from the grid file's folder, else are the packaged defaults of
-    that name (``runs.input_paths``).
+    that name (``settings.input_paths``).
 
     Raises:
         GridError: a file that cannot be read or parsed, or one line per bad entry.

@@ -1,7 +1,7 @@
 """A campaign grid's entries, checked whole before any run starts.
 
 Every entry of ``base`` and ``axes`` against its setting's check (``settings.experiment``), every input
-file (resolved by ``runs.input_paths`` and read as the run reads it), every user's method
+file (resolved by ``settings.input_paths`` and read as the run reads it), every user's method
 (loaded), and every topology with its placement, redundancy levels and scripted outages: each bad
 entry is one line of the :class:`GridError`. ``runs.grid`` expands what passes into runs.
 """
@@ -18,10 +18,10 @@ from typing import Any
 from yafs_safetail.defaults import DATA_FILES, DATA_ROOT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.calibration import WORLD_NAMES, WorldSettings, world_settings
 from yafs_safetail.edge.failures import read_down_file
+from yafs_safetail.edge.mobility import read_route
 from yafs_safetail.edge.scenario import load_placement, load_scenario, load_topology
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS
-from yafs_safetail.runs.input_paths import resolve_input
 from yafs_safetail.settings.declare import setting_of
 from yafs_safetail.settings.experiment import (
     GRID_RUNTIME_FIELDS,
@@ -29,6 +29,7 @@ from yafs_safetail.settings.experiment import (
     RUNTIME_FIELDS,
     ExperimentConfig,
 )
+from yafs_safetail.settings.input_paths import resolve_input
 
 #: RUNTIME_FIELDS (from settings.experiment) say where a run goes and how it shows itself, never what
 #: it computes: the campaign sets them, and they are left out of the run id. A grid sets the
@@ -100,7 +101,7 @@ def _unknown(name: str) -> str:
 
 
 def _input_file(name: str, value: Any, folder: Path) -> str:
-    """A path entry resolved (``runs.input_paths``), checked to exist and, for a topology or a
+    """A path entry resolved (``settings.input_paths``), checked to exist and, for a topology or a
     placement, read as the run reads it."""
     if not isinstance(value, str) or not value:
         raise _BadEntry("expected a path")
@@ -279,7 +280,7 @@ def _scenario_problems(values: Mapping[str, list[GridValue]], named: set[str], d
     every scripted outage on one of them).
     Only good entries are paired (a bad one has its own line); ``named``: the settings the grid
     sets."""
-    if not named & {"topology", "placement", "redundancy_levels", "down_intervals"}:
+    if not named & {"topology", "placement", "redundancy_levels", "down_intervals", "route"}:
         return []  # the defaults, which every run of the project checks
     default_topology = GridValue("the default topology", None, str(DEFAULT_TOPOLOGY))
     topologies = values.get("topology", []) if "topology" in named else [default_topology]
@@ -298,11 +299,12 @@ def _scenario_problems(values: Mapping[str, list[GridValue]], named: set[str], d
             continue
         for placement in paired:
             try:
-                n_servers = load_scenario(topology.value, placement.value).n_servers
+                scenario = load_scenario(topology.value, placement.value)
             except ValueError as error:
                 problems.append(f"{source}: {topology.named} with {placement.where}: "
                                 f"{' '.join(str(error).split())}")
                 continue
+            n_servers = scenario.n_servers
             if n_servers > MAX_SERVERS:
                 problems.append(f"{source}: {topology.named}: {n_servers} edge servers; SafeTail "
                                 f"supports 1 to {MAX_SERVERS}")
@@ -320,6 +322,13 @@ def _scenario_problems(values: Mapping[str, list[GridValue]], named: set[str], d
                 except ValueError as error:  # FailureFileError: the file, the row, the field
                     problems.append(f"{source}: {outages.named} with {topology.named}: "
                                     f"{' '.join(str(error).split())}")
+            for route in values.get("route", []):
+                if route.value is None:
+                    continue
+                try:  # degrees need the topology's origin: read with each topology
+                    read_route(Path(route.value), scenario.topology.origin)
+                except ValueError as error:  # RouteError: the file, the point, what is wrong
+                    problems.append(f"{source}: {route.named} with {topology.named}: {error}")
     return list(dict.fromkeys(problems))  # a pair met twice is one line
 
 

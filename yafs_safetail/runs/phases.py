@@ -68,7 +68,7 @@ def run_learners(job: LearnersJob, learners: Sequence[LearningPolicy],
                             f"{job.prefix} {policy.name} {TRAIN_PHASE}",
                             yafs_path=job.yafs_path(policy, TRAIN_PHASE), bar=job.bar,
                             checkpoints=checkpoints, chunk_steps=job.chunk_steps)
-            frames.append(records_frame(records, TRAIN_PHASE, job.episode_steps))
+            frames.append(records_frame(records, TRAIN_PHASE, job.episode_steps, job.train_world.movement))
             summary = policy.end_training()
             if summary:
                 log.info("%s %s: %s", job.prefix, policy.name, summary)
@@ -77,7 +77,7 @@ def run_learners(job: LearnersJob, learners: Sequence[LearningPolicy],
                    logger=log) as progress:
             records = simulate(job.test_world, policy, job.step_interval_s,
                                job.yafs_path(policy, TEST_PHASE), progress)
-        frames.append(records_frame(records, TEST_PHASE, job.episode_steps))
+        frames.append(records_frame(records, TEST_PHASE, job.episode_steps, job.test_world.movement))
     learning_s = 0.0
     for policy in learners:
         timings_s["decisions"] += policy.decision_time_s

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import yafs_safetail
 from yafs_safetail import results, versions
 from yafs_safetail.edge.scenario import REPOSITORY
+from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
 from yafs_safetail.settings.declare import changed_settings
@@ -81,6 +82,22 @@ def failures_and_energy(world: EdgeWorld) -> dict[str, Any]:
     }
 
 
+def mobility_fields(config: ExperimentConfig, world: EdgeWorld) -> dict[str, Any]:
+    """``run.json``'s ``mobility`` entry when the user moves (none otherwise, so that a run at
+    rest writes what it always did): the model, the route file or random waypoint's speeds
+    and pause, and the distance-to-condition rule's edges."""
+    movement = world.movement
+    if movement is None:
+        return {}
+    entry: dict[str, Any] = {"model": config.mobility}
+    if config.route is not None:
+        entry["route"] = recorded_path(Path(config.route))
+    else:
+        entry.update(speed_mps=[float(v) for v in config.speed_mps], pause_s=float(config.pause_s))
+    entry["condition_edges_m"] = [round(edge, 3) for edge in DEFAULT_SIGNAL_RULE.distance_edges_m()]
+    return {"mobility": entry}
+
+
 def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[LearningPolicy],
                  methods: list[str]) -> results.RunMetadata:
     """The run's ``run.json`` (its learners trained, every method named in ``methods``).
@@ -98,6 +115,7 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
         "nu": test_world.nu,
         "world": test_world.settings.to_dict(),
         **failures_and_energy(test_world),
+        **mobility_fields(config, test_world),
         results.PLACEMENT_KEY: recorded_path(Path(config.placement)),
         # The libraries' versions, and a note when they are not the lock's (summary.md says it).
         **versions.run_json_fields(),

@@ -90,7 +90,7 @@ class MethodsJob:
                     None if self.yafs_dir is None else self.yafs_dir / f"{policy.name}_test",
                     progress,
                 )
-                frames.append(records_frame(records, "test", self.episode_steps))
+                frames.append(records_frame(records, "test", self.episode_steps, self.world.movement))
                 log.debug("%s test: %d requests in %.2f s", policy.name, len(records),
                           time.perf_counter() - method_started)
         return frames, time.perf_counter() - started

@@ -31,10 +31,12 @@ from typing import Any
 
 from yafs_safetail.defaults import FIGURE_FORMATS, figure_formats
 from yafs_safetail.settings.parse import (
+    is_speed_range,
     non_negative_float,
     non_negative_int,
     positive_float,
     positive_int,
+    speed_range,
 )
 
 
@@ -111,6 +113,9 @@ def _probability_below_one(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a probability in [0, 1), got {text!r}")
     return value
 
+
+#: Random waypoint's speeds: a range above zero, or (0, 0) for a user at rest.
+SPEED_RANGE = Check("slowest,fastest in m/s with 0 < slowest <= fastest, or 0,0", is_speed_range, speed_range)
 
 #: A server's stationary unavailability: 1 would be a server that is never up.
 PROBABILITY_BELOW_ONE = Check(

@@ -43,8 +43,10 @@ from yafs_safetail.defaults import (
     DEFAULT_STEP_INTERVAL_S,
     DEFAULT_TOPOLOGY,
     DEFAULT_TRACE_DIR,
+    MOBILITY_MODELS,
     OBJECTIVES,
     PRESET_NAMES,
+    WALKING_SPEED_MPS,
 )
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.settings.declare import (
@@ -56,6 +58,7 @@ from yafs_safetail.settings.declare import (
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
     PROBABILITY_BELOW_ONE,
+    SPEED_RANGE,
     SettingError,
     one_of,
     setting,
@@ -70,7 +73,7 @@ if TYPE_CHECKING:
 
 
 __all__ = [
-    "ExperimentError", "Task", "WorldInputs", "WorldOverrides", "FailuresAndPower", "WorldSetup",
+    "ExperimentError", "Task", "WorldInputs", "WorldOverrides", "FailuresAndPower", "Mobility", "WorldSetup",
     "LearnerOverrides", "Output", "ExperimentConfig", "GROUPS", "FIRST_RESULT_FIELDS", "LATER_RESULT_FIELDS",
     "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS", "learner_overrides", "learner_config",
     "expand_method_spec",
@@ -169,10 +172,30 @@ class FailuresAndPower:
 
 
 @dataclass(frozen=True)
-class WorldSetup(FailuresAndPower, WorldOverrides, WorldInputs):
+class Mobility:
+    """Whether and how the user moves (beyond the paper; docs/mobility.md). Off: the user stays
+    where the topology puts it and every link keeps the topology's condition."""
+
+    mobility: str = setting(
+        "off", "how the user moves: off, random-waypoint, or route (--route); on the move each "
+        "link's condition follows the user's distance to its server, so the topology must place "
+        "every edge server (x, y or lat, lon; e.g. topologies/campus_5servers.json)",
+        check=one_of(MOBILITY_MODELS))
+    route: Path | None = setting(
+        None, "with --mobility route: the route, a CSV (time_s,x_m,y_m or time_s,lat,lon) or a GPX "
+        "track (e.g. routes/campus_walk.csv)", optional=True)
+    speed_mps: tuple[float, float] = setting(
+        WALKING_SPEED_MPS, "with --mobility random-waypoint: the speed range in m/s, slowest,fastest "
+        "(default 1,1.5, walking; 0,0: at rest)", check=SPEED_RANGE, metavar="SLOWEST,FASTEST")
+    pause_s: float = setting(30.0, "with --mobility random-waypoint: the pause at each destination in "
+                             "seconds (default 30)", check=NON_NEGATIVE_NUMBER)
+
+
+@dataclass(frozen=True)
+class WorldSetup(Mobility, FailuresAndPower, WorldOverrides, WorldInputs):
     """The world the run happens in: its inputs, the run's overrides of the world's settings
-    (``settings.world``, shared with the contention world) and its failures and power models,
-    fields in that order."""
+    (``settings.world``, shared with the contention world), its failures and power models, and
+    how the user moves, fields in that order."""
 
 
 @dataclass(frozen=True)

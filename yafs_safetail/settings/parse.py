@@ -8,6 +8,7 @@ loads. ``cli`` re-exports every name, for the commands and the scripts outside t
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 
@@ -103,3 +104,26 @@ def distinct_int_list(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(
             f"{repeated[0]} is given twice in {text!r}; a repeated seed would count twice")
     return values
+
+
+def speed_range(text: str) -> tuple[float, float]:
+    """An argparse type: ``slowest,fastest`` in m/s, 0 < slowest <= fastest, or ``0,0`` (at rest)."""
+    parts = text.split(",")
+    try:
+        slowest, fastest = (float(part) for part in parts) if len(parts) == 2 else (math.nan, math.nan)
+    except ValueError:
+        slowest = fastest = math.nan
+    if not is_speed_range((slowest, fastest)):
+        raise argparse.ArgumentTypeError(f"expected slowest,fastest in m/s with 0 < slowest <= fastest "
+                                         f"(or 0,0 for at rest), got {text!r}")
+    return slowest, fastest
+
+
+def is_speed_range(value: object) -> bool:
+    """Whether ``value`` is a (slowest, fastest) pair random waypoint accepts."""
+    if not (isinstance(value, tuple | list) and len(value) == 2):
+        return False
+    if not all(isinstance(v, float | int) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+        return False
+    slowest, fastest = value
+    return (slowest, fastest) == (0, 0) or 0 < slowest <= fastest

@@ -17,11 +17,21 @@ from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings, read_down_file
+from yafs_safetail.edge.mobility import RandomWaypoint, read_route
+from yafs_safetail.edge.movement import (
+    MobilityPlan,
+    MovementError,
+    default_area_m,
+    server_positions_m,
+)
+from yafs_safetail.edge.scenario import EdgeScenario
+from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
 from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, LearnerConfig, scaled_steps
 from yafs_safetail.settings.declare import check_config, field_of, setting_of
 from yafs_safetail.settings.experiment import ExperimentConfig, ExperimentError, learner_config
+from yafs_safetail.settings.input_paths import resolve_input
 from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
 
 #: The phases a run's worlds are drawn for (independent random streams).
@@ -46,6 +56,8 @@ class WorldRecipe(OnWorldParts):
         failures: which servers fail and the user's time-out (``edge.failures``).
         energy: the servers' and the device's power models (``edge.energy``).
         step_interval_s: time between two requests (the outages are drawn over the phase).
+        mobility: how the user moves (``edge.movement``); None: it stays where the topology
+            puts it.
     """
 
     parts: WorldParts
@@ -56,6 +68,7 @@ class WorldRecipe(OnWorldParts):
     failures: FailureSettings = field(default_factory=FailureSettings)
     energy: EnergyModel = field(default_factory=EnergyModel)
     step_interval_s: float = DEFAULT_STEP_INTERVAL_S
+    mobility: MobilityPlan | None = None
 
     def n_steps(self, phase: str) -> int:
         """The requests of ``phase`` (``"train"``: the learner's budget; else the test's)."""
@@ -65,7 +78,15 @@ class WorldRecipe(OnWorldParts):
         """The world of ``phase`` drawn from ``seed`` (every method of the phase replays it)."""
         return self.parts.draw(self.n_steps(phase), seed, phase, episode_steps=self.learner.episode_steps,
                                failures=self.failures, energy=self.energy,
-                               step_interval_s=self.step_interval_s)
+                               step_interval_s=self.step_interval_s, mobility=self.mobility)
+
+
+def input_file(path: str | Path) -> Path:
+    """An input option's file: as given when it exists there, else the packaged default of that
+    name (``topologies/campus_5servers.json`` from any folder; ``settings.input_paths``),
+    else as given (its reader then names it)."""
+    given = Path(path)
+    return given if given.exists() else resolve_input(given, Path.cwd())
 
 
 def _label(name: str, style: str) -> str:
@@ -91,8 +112,9 @@ def failure_settings(config: ExperimentConfig, n_servers: int, style: str = "opt
     else:
         settings = FailureSettings(mttf_s=config.failure_mttf_s, mttr_s=mttr_s, timeout_s=config.timeout_s)
     if config.down_intervals is not None:
-        read_down_file(Path(config.down_intervals), n_servers)  # bad input: one line, before any draw
-        settings = dataclasses.replace(settings, down_file=Path(config.down_intervals))
+        down_file = input_file(config.down_intervals)
+        read_down_file(down_file, n_servers)  # bad input: one line, before any draw
+        settings = dataclasses.replace(settings, down_file=down_file)
     return settings
 
 
@@ -110,6 +132,37 @@ def energy_model(config: ExperimentConfig, style: str = "option") -> EnergyModel
     return EnergyModel(server=ServerPowerModel(idle_w=idle_w, max_w=max_w))
 
 
+def mobility_plan(config: ExperimentConfig, scenario: EdgeScenario, style: str = "option") -> MobilityPlan | None:
+    """How the run's user moves, from its options (the route file read once, to check it).
+
+    Raises:
+        ExperimentError: a route without ``--mobility route`` or the reverse, random waypoint's
+            speeds or pause without it, or a topology that does not place every server.
+        RouteError: a bad route file (one line: file, point, what is wrong).
+    """
+    mode = config.mobility
+    if mode == "route" and config.route is None:
+        raise ExperimentError(f"{_label('mobility', style)} route: needs {_label('route', style)} FILE")
+    if config.route is not None and mode != "route":
+        raise ExperimentError(f"{_label('route', style)}: only with {_label('mobility', style)} route")
+    if mode != "random-waypoint":
+        for name in ("speed_mps", "pause_s"):
+            if getattr(config, name) != field_of(ExperimentConfig, name).default:
+                raise ExperimentError(f"{_label(name, style)}: only with {_label('mobility', style)} random-waypoint")
+    if mode == "off":
+        return None
+    try:
+        server_positions_m(scenario)
+    except MovementError as error:
+        raise ExperimentError(f"{_label('mobility', style)} {mode}: {error}") from None
+    if mode == "route":
+        assert config.route is not None
+        return MobilityPlan(route=read_route(input_file(config.route), scenario.topology.origin))
+    speeds = tuple(float(v) for v in config.speed_mps)
+    return MobilityPlan(random_waypoint=RandomWaypoint(
+        default_area_m(scenario, DEFAULT_SIGNAL_RULE), (speeds[0], speeds[1]), float(config.pause_s)))
+
+
 def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe:
     """Check the configuration's fields and read what its worlds are drawn from.
 
@@ -124,7 +177,7 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
     check_config(config, style)
     full, learner = learner_config(config)
     preset_world = config.world or world_settings(PRESET_WORLDS[config.preset])
-    parts = read_world_parts(config.use_case, preset_world, config.topology, config.placement,
+    parts = read_world_parts(config.use_case, preset_world, input_file(config.topology), input_file(config.placement),
                              config.traces_dir)
     try:
         settings, overrides = apply_world_overrides(parts.settings, config)
@@ -133,7 +186,8 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
     return WorldRecipe(parts=dataclasses.replace(parts, settings=settings), full_preset=full, learner=learner,
                        test_steps=scaled_steps(full.test_steps, config.steps_scale), overrides=overrides,
                        failures=failure_settings(config, parts.scenario.n_servers, style),
-                       energy=energy_model(config, style), step_interval_s=config.step_interval_s)
+                       energy=energy_model(config, style), step_interval_s=config.step_interval_s,
+                       mobility=mobility_plan(config, parts.scenario, style))
 
 
 def make_world(config: ExperimentConfig, phase: str, seed: int | None = None) -> EdgeWorld:

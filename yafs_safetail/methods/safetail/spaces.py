@@ -172,7 +172,9 @@ class StateScales:
             uncontended link, 20 Mbit/s.
         active_users: Reference for ℓ_i, the maximum load of a server (Table I: 4).
         propagation_s: Reference for ρ^μ_i; 1 s keeps seconds as they are.
-        location: Reference for each location coordinate (topology units).
+        location: Reference for each location coordinate, metres on the topology's plane:
+            100 m, about where the signal turns poor (``edge.signal``), brings a moving user's
+            position to O(1) (every shipped topology's user at rest sits at the origin).
     """
 
     input_bytes: float
@@ -181,7 +183,7 @@ class StateScales:
     bandwidth_bps: float = 20e6
     active_users: float = 4.0
     propagation_s: float = 1.0
-    location: float = 1.0
+    location: float = 100.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "gamma", tuple(float(x) for x in self.gamma))
