@@ -77,6 +77,8 @@ BAD_ENTRIES = {
     "a route that goes back in time": ('topology = "topologies/campus_5servers.json"\nmobility = "route"\n',
                                        'route = ["walk.csv"]\n', "axes.route[0]",
                                        "walk.csv: point 2: time 5 s is before the previous point's (10 s)"),
+    "a moving user among unplaced servers": ('mobility = "random-waypoint"\n', 'topology = ["topologies/3servers.json"]\n',
+                                             "base.mobility", "needs every edge server's position"),
     "a level above the default topology's servers": ("", "redundancy_levels = [[1, 6]]\n",
                                                      "axes.redundancy_levels[0]", "x=6 is more than its 5"),
     "a method file that is missing": ("", 'methods = [["missing.py:X"]]\n', "axes.methods[0]", "no such file"),

@@ -222,6 +222,7 @@ SCRIPT_COMMANDS = {
     "sweep": ("load_sweep", "many users: every method against the offered load"),
     "mechanism": ("training_mechanism", "many users: each SafeTail's copies and queues over its training"),
     "failure-sweep": ("failure_sweep", "servers that fail: success, p99 and energy per request"),
+    "mobility-sweep": ("mobility_sweep", "a user who moves: every method's p99 and servers against speed"),
     "figures": ("figures", "redraw a results folder's figures"),
     "feasibility": ("feasibility", "what any policy could reach in the worlds of run folders"),
 }

@@ -74,6 +74,10 @@ BASELINE_READINGS = ("paper-text", "original-code")
 MOBILITY_MODELS = ("off", "random-waypoint", "route")
 #: Random waypoint's default speed range, m/s: walking.
 WALKING_SPEED_MPS = (1.0, 1.5)
+#: The mobility sweep's named speed ranges, m/s, slowest first: a user at rest; walking; urban
+#: driving at 30 to 50 km/h.
+MOBILITY_SPEEDS_MPS: dict[str, tuple[float, float]] = {
+    "rest": (0.0, 0.0), "walking": WALKING_SPEED_MPS, "driving": (8.0, 14.0)}
 #: How many servers the original code's MinLoad-x and MinProp-x drew before sorting.
 ORIGINAL_CODE_CANDIDATES = 3
 #: Simulated time between two requests: one load-trace row (one minute) per step.

@@ -280,7 +280,7 @@ def _scenario_problems(values: Mapping[str, list[GridValue]], named: set[str], d
     every scripted outage on one of them).
     Only good entries are paired (a bad one has its own line); ``named``: the settings the grid
     sets."""
-    if not named & {"topology", "placement", "redundancy_levels", "down_intervals", "route"}:
+    if not named & {"topology", "placement", "redundancy_levels", "down_intervals", "route", "mobility"}:
         return []  # the defaults, which every run of the project checks
     default_topology = GridValue("the default topology", None, str(DEFAULT_TOPOLOGY))
     topologies = values.get("topology", []) if "topology" in named else [default_topology]
@@ -322,6 +322,10 @@ def _scenario_problems(values: Mapping[str, list[GridValue]], named: set[str], d
                 except ValueError as error:  # FailureFileError: the file, the row, the field
                     problems.append(f"{source}: {outages.named} with {topology.named}: "
                                     f"{' '.join(str(error).split())}")
+            for mobility in values.get("mobility", []):
+                if mobility.value != "off" and not scenario.topology.server_positions_m:
+                    problems.append(f"{source}: {mobility.named} with {topology.named}: a user who moves needs "
+                                    "every edge server's position (x, y in metres, or lat, lon)")
             for route in values.get("route", []):
                 if route.value is None:
                     continue
