@@ -63,7 +63,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_list_options(parser, ExperimentConfig, {"seed": "--seeds"},
                      seed={"default": (0, 1, 2), "help": "distinct seeds (default 0,1,2)"})
     add_options(parser, ExperimentConfig, only=("use_case", "preset", "steps_scale", "topology", "placement",
-                                                "pause_s", "methods", "figures", "figure_formats"),
+                                                "pause_s", "step_interval_s", "baseline_reading", "methods",
+                                                "figures", "figure_formats"),
                 topology={"default": CAMPUS_TOPOLOGY,
                           "help": "YAFS topology JSON placing the user and every edge server "
                                   "(default topologies/campus_5servers.json)"},
@@ -94,8 +95,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     base = {"use_case": args.use_case, "preset": args.preset, "steps_scale": args.steps_scale,
             "topology": str(args.topology), "mobility": "random-waypoint", "pause_s": args.pause_s,
             "figures": args.figures, "figure_formats": args.figure_formats}
-    if args.placement is not None:
-        base["placement"] = str(args.placement)
+    # Only when given, so that a sweep without them keeps its runs' ids.
+    for name in ("placement", "step_interval_s", "baseline_reading"):
+        if getattr(args, name) is not None and getattr(args, name) != getattr(ExperimentConfig(), name):
+            base[name] = str(args.placement) if name == "placement" else getattr(args, name)
     if args.methods:
         base["methods"] = list(args.methods)
     # One campaign: every (speed, seed) a run, resumable and in parallel, at OUT/<speed>/seed<S>.
