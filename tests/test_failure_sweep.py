@@ -34,7 +34,7 @@ def test_failure_sweep_small_budget(tmp_path):
     command = [sys.executable, str(FAILURE_SWEEP), "--uc", "1", "--users", "10", "--failure-levels", "0.2,0",
                "--steps-scale", "0.02", "--objectives", "target-vector", "--methods", "Oracle,Rand-1,MinLoad-2,Tied",
                # Short outages: the 400 requests span a few minutes, and each server should fail in them.
-               "--mttr-s", "5", "--seed", "3", "--out", str(out)]
+               "--failure-mttr-s", "5", "--seed", "3", "--out", str(out)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     frame = pd.read_csv(out / "failure_sweep.csv")
@@ -75,7 +75,7 @@ def test_failure_sweep_bad_input_is_one_line(tmp_path):
         ("--failure-levels", "0,1.2"): "--failure-levels: expected distinct probabilities in [0, 1)",
         ("--failure-levels", "0.1,0.1"): "--failure-levels: expected distinct probabilities in [0, 1)",
         ("--load", "0"): "--load: expected a load in (0, 10)",
-        ("--mttr-s", "-5"): "--mttr-s: expected a positive number",
+        ("--failure-mttr-s", "-5"): "--failure-mttr-s: expected a positive number",
         ("--timeout-s", "nan"): "--timeout-s: expected a positive number",
         ("--methods", "Best-3"): "unknown baseline 'Best-3'",
         ("--steps-scale", "0.001"): "20 test requests per failure level",

@@ -53,7 +53,7 @@ CASES = {
     "load_sweep --safetail-dispatch bogus": ([SWEEP_SCRIPT, "--safetail-dispatch", "bogus", "--out", "unused"], 2),
     "failure-sweep --failure-levels 2": (["yafs-safetail", "failure-sweep", "--failure-levels", "2",
                                           "--out", "unused"], 2),
-    "failure_sweep --mttr-s 0": ([str(REPOSITORY / "experiments" / "failure_sweep.py"), "--mttr-s", "0",
+    "failure_sweep --failure-mttr-s 0": ([str(REPOSITORY / "experiments" / "failure_sweep.py"), "--failure-mttr-s", "0",
                                   "--out", "unused"], 2),
     "mechanism --loads 0": (["yafs-safetail", "mechanism", "--loads", "0", "--out", "unused"], 2),
 }

@@ -64,3 +64,20 @@ def test_a_deprecated_spelling_still_works_and_says_so(capsys) -> None:
     assert args.objective == "value"
     assert capsys.readouterr().err == "warning: --learner is deprecated; use --objective\n"
     assert "--learner" not in run_usecase._parser().format_help()
+
+
+def test_the_same_setting_has_the_same_option_in_a_run_and_a_sweep(capsys) -> None:
+    """A server's mean time to repair is --failure-mttr-s in both; the sweep's old --mttr-s still works."""
+    import argparse
+
+    from yafs_safetail.contention.sweep_config import FailureSweepConfig
+    from yafs_safetail.settings.declare import add_options
+
+    parser = argparse.ArgumentParser()
+    add_options(parser, FailureSweepConfig, only=("mttr_s",))
+    assert parser.parse_args(["--failure-mttr-s", "30"]).mttr_s == 30.0
+    assert parser.parse_args(["--mttr-s", "20"]).mttr_s == 20.0
+    assert capsys.readouterr().err == "warning: --mttr-s is deprecated; use --failure-mttr-s\n"
+    run_option = setting_of(dataclasses.fields(ExperimentConfig)[[f.name for f in dataclasses.fields(
+        ExperimentConfig)].index("failure_mttr_s")]).option("failure_mttr_s")
+    assert run_option == "--failure-mttr-s"

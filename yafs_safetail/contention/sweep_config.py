@@ -35,7 +35,6 @@ from yafs_safetail.edge.failure_settings import DEFAULT_MTTR_S, FailureSettings
 from yafs_safetail.settings.declare import (
     BOOLEAN,
     POSITIVE_INTEGER,
-    POSITIVE_NUMBER,
     check_config,
     one_of,
     same_as,
@@ -354,8 +353,11 @@ class FailureSweepConfig(ContentionSweep):
         "one sweep point each (default 0,0.05,0.1,0.2,0.3)", check=FAILURE_LEVELS)
     load: float = setting(DEFAULT_FAILURE_LOAD, f"the offered load at every level (default {DEFAULT_FAILURE_LOAD:g}: the one "
                           "load of the load sweep at which Oracle's queues are stable)", check=ONE_LOAD)
-    mttr_s: float = setting(DEFAULT_MTTR_S, f"each server's mean time to repair in seconds (default {DEFAULT_MTTR_S:g}; "
-                            "its mean time to failure follows from the level)", check=POSITIVE_NUMBER)
+    # A run's --failure-mttr-s, under the name a sweep point's settings have always recorded.
+    mttr_s: float = same_as(
+        FailuresAndPower, "failure_mttr_s", default=DEFAULT_MTTR_S, optional=False, flag="--failure-mttr-s",
+        deprecated=("--mttr-s",), help=f"each server's mean time to repair in seconds (default {DEFAULT_MTTR_S:g}; "
+        "its mean time to failure follows from the level)")
     timeout_s: float | None = same_as(
         FailuresAndPower, "timeout_s", help="how long a user waits for a reply before the on-device fallback "
         "(default: the world's worst-case latency of a live uncontended copy)")
