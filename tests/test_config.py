@@ -11,7 +11,7 @@ import pytest
 
 from yafs_safetail.methods.safetail.presets import get_preset
 from yafs_safetail.runs import grid
-from yafs_safetail.settings.declare import add_options, check_config, config_from_args, setting_of
+from yafs_safetail.settings.declare import check_config, setting_of
 from yafs_safetail.settings.experiment import (
     GROUPS,
     RESULT_FIELDS,
@@ -21,6 +21,7 @@ from yafs_safetail.settings.experiment import (
     learner_config,
     learner_overrides,
 )
+from yafs_safetail.settings.options import add_options, config_from_args
 
 
 def test_every_field_is_declared_once_in_one_group_with_its_help():

@@ -1,4 +1,4 @@
-"""Every setting's command-line option comes from its declaration (settings.declare): no
+"""Every setting's command-line option comes from its declaration (settings.options): no
 ``add_argument`` anywhere else but the mechanism itself and the two plumbing helpers, and no
 plumbing option that is a setting's."""
 
@@ -19,7 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "yafs_safetail"
 #: Where argparse options may be added: the mechanism deriving them from declarations, and the
 #: helpers for what is not a setting (cli: --version, --quiet/--verbose, add_plumbing; the
 #: engines' --workers/--engine/--ray-address).
-ALLOWED = {"settings/declare.py", "cli.py", "runs/engine_options.py"}
+ALLOWED = {"settings/options.py", "cli.py", "runs/engine_options.py"}
 #: Every configuration whose fields a command turns into options.
 CONFIGURATIONS = (ExperimentConfig, ContentionConfig, SweepConfig, FailureSweepConfig, Measurement)
 
@@ -39,7 +39,7 @@ def _calls(name: str) -> list[tuple[str, ast.Call]]:
 def test_no_option_is_added_outside_the_mechanism_and_the_plumbing_helpers() -> None:
     stray = sorted({f"{where}:{call.lineno}" for where, call in _calls("add_argument")
                     if where not in ALLOWED})
-    assert stray == [], f"add_argument outside settings.declare and the plumbing helpers: {stray}"
+    assert stray == [], f"add_argument outside settings.options and the plumbing helpers: {stray}"
 
 
 def test_plumbing_is_never_the_option_of_a_setting_that_changes_results() -> None:
@@ -71,7 +71,7 @@ def test_the_same_setting_has_the_same_option_in_a_run_and_a_sweep(capsys) -> No
     import argparse
 
     from yafs_safetail.contention.sweep_config import FailureSweepConfig
-    from yafs_safetail.settings.declare import add_options
+    from yafs_safetail.settings.options import add_options
 
     parser = argparse.ArgumentParser()
     add_options(parser, FailureSweepConfig, only=("mttr_s",))

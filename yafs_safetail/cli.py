@@ -70,7 +70,7 @@ class ArgumentParser(argparse.ArgumentParser):
     (``yafs-safetail run``) instead of the script's own ``prog``, since that is what the user
     typed; run directly, a script keeps its own name. Every parser with ``--help`` also has
     ``--version``, and an option declared with ``type=Path`` (by hand or by
-    ``settings.declare.add_options``) reads its value through :func:`user_path`.
+    ``settings.options.add_options``) reads its value through :func:`user_path`.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -92,7 +92,7 @@ class ArgumentParser(argparse.ArgumentParser):
 
 #: Options that are not settings: where a command writes, what it reads besides its settings and
 #: how many processes it uses, never what it computes. A setting's option comes from its
-#: declaration (``settings.declare.add_options``), never from here (tests/test_option_sources.py).
+#: declaration (``settings.options.add_options``), never from here (tests/test_option_sources.py).
 PLUMBING_FLAGS = ("--out", "--overwrite", "--grid", "--apply", "--workers")
 
 

@@ -36,8 +36,8 @@ from yafs_safetail.runs.engine_options import (
     default_workers_help,
     local_workers,
 )
-from yafs_safetail.settings.declare import add_list_options
 from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.options import add_list_options
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -30,8 +30,8 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.defaults import LEARNING_RATE_GRID as RATE_GRID
 from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.settings.declare import add_list_options, add_options
 from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.options import add_list_options, add_options
 
 # The runner (pandas, the simulator, TensorFlow behind it) is imported after the options are
 # read, so --help and a bad option answer at once (issue 30).

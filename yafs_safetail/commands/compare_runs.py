@@ -23,8 +23,8 @@ from yafs_safetail.cli import (
     configure_verbosity,
     print_result,
 )
-from yafs_safetail.settings.declare import add_options
 from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.options import add_options
 
 log = logging.getLogger(__name__)
 

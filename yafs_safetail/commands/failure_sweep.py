@@ -54,7 +54,7 @@ from yafs_safetail.commands.sweeps import (
 from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.sweep_config import FailureSweepConfig
 from yafs_safetail.runs.engine_options import engine_free_command
-from yafs_safetail.settings.declare import add_options, config_from_args
+from yafs_safetail.settings.options import add_options, config_from_args
 
 #: run.json's kind of a failure sweep's folder.
 FAILURE_SWEEP_KIND = "failure_sweep"

@@ -20,8 +20,8 @@ from yafs_safetail.cli import (
     print_result,
     run_script,
 )
-from yafs_safetail.settings.declare import add_options
 from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.options import add_options
 
 
 def main(argv: Sequence[str] | None = None) -> int:

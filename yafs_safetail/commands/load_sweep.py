@@ -61,7 +61,7 @@ from yafs_safetail.commands.sweeps import (
 from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.runs.engine_options import engine_free_command
-from yafs_safetail.settings.declare import add_list_options, add_options, config_from_args
+from yafs_safetail.settings.options import add_list_options, add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
 
 #: With --seeds: every seed's sweep.csv rows, with a leading seed column.

@@ -58,13 +58,14 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.edge.published import USE_CASES
 from yafs_safetail.runs.engine_options import add_engine_options
-from yafs_safetail.settings.declare import add_list_options, add_options, field_of, setting_of
+from yafs_safetail.settings.declare import field_of, setting_of
 from yafs_safetail.settings.experiment import (
     ExperimentConfig,
     ExperimentError,
     LearnerOverrides,
     Task,
 )
+from yafs_safetail.settings.options import add_list_options, add_options
 
 
 def _check_methods(specs: Sequence[str]) -> None:

@@ -44,8 +44,8 @@ from yafs_safetail.cli import (
 from yafs_safetail.defaults import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.topology_io import ScenarioError
 from yafs_safetail.logs import is_terminal
-from yafs_safetail.settings.declare import add_options, config_from_args
 from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.options import add_options, config_from_args
 
 #: The run's options in the order --help lists them (each declared once, in settings.experiment).
 OPTIONS = ("use_case", "preset", "seed", "out_dir", "force", "overwrite", "resume", "checkpoint_every_s",

@@ -20,7 +20,7 @@ from yafs_safetail.cli import add_plumbing, add_verbosity_options
 from yafs_safetail.contention.config import ContentionConfig, ContentionError
 from yafs_safetail.contention.sweep_config import SWEEP_WORLD, ContentionSweep
 from yafs_safetail.runs.engine_options import add_engine_options
-from yafs_safetail.settings.declare import add_options, config_from_args
+from yafs_safetail.settings.options import add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
 
 if TYPE_CHECKING:

@@ -13,8 +13,8 @@ glance:
 
 :class:`ExperimentConfig` is the four together (it inherits their fields, so ``config.seed``
 and ``ExperimentConfig(seed=3)`` read as before). Each field carries a :class:`Setting` in its
-metadata (declared with :func:`setting`; the machinery, and everything derived from the
-declarations, lives in ``settings.declare``): the command-line options of the scripts
+metadata (declared with :func:`setting`; the machinery lives in ``settings.declare``, the
+command line derived from it in ``settings.options``): the command-line options of the scripts
 (:func:`add_options`), the configuration from parsed options (:func:`config_from_args`), the
 checks at run start (:func:`check_config`), the campaign grid's settable fields and the run id
 (``runs.grid``: :data:`RESULT_FIELDS`), the Gymnasium environment's keywords (``sim.env``), the
