@@ -30,7 +30,7 @@ from yafs_safetail.edge import sampling
 from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world, phase_streams
 from yafs_safetail.methods.registry import ORACLE
 from yafs_safetail.results.files import PERCENTILES
-from yafs_safetail.runs import calibrate
+from yafs_safetail.runs import calibrate, world_fit
 
 CONDITIONS = (1, 2, 3, 4, 5)
 
@@ -54,9 +54,9 @@ def condition_by_load(world: EdgeWorld, inputs: object, seed: int) -> tuple[Edge
 
 
 def latencies_by_load(world: EdgeWorld, median_s: np.ndarray,
-                      choices: calibrate.SeedChoices) -> dict[str, np.ndarray]:
+                      choices: world_fit.SeedChoices) -> dict[str, np.ndarray]:
     """Oracle's and the x = 1 baselines' latency, MinProp-1 keyed on each step's median."""
-    latencies = calibrate.method_latencies_s(world, choices)
+    latencies = world_fit.method_latencies_s(world, choices)
     steps = np.arange(world.n_steps)
     drawn = choices.minprop_candidates
     chosen = drawn[steps, np.argmin(median_s[steps[:, None], drawn], axis=1)]
@@ -66,24 +66,24 @@ def latencies_by_load(world: EdgeWorld, median_s: np.ndarray,
 
 
 def objective(candidate: dict, seeds: list[int], reading: str) -> tuple[float, dict[str, float]]:
-    use_case, inputs, scenario = calibrate._scenario(str(calibrate.DEFAULT_TOPOLOGY),
-                                                     str(calibrate.DEFAULT_PLACEMENT))
-    settings = dataclasses.replace(calibrate.settings_for(candidate), baseline_reading="original-code")
+    use_case, inputs, scenario = world_fit._scenario(str(world_fit.DEFAULT_TOPOLOGY),
+                                                     str(world_fit.DEFAULT_PLACEMENT))
+    settings = dataclasses.replace(world_fit.settings_for(candidate), baseline_reading="original-code")
     per_seed = []
     for seed in seeds:
-        world = build_world(scenario, use_case, inputs, calibrate.TEST_STEPS, seed=seed, phase="test",
+        world = build_world(scenario, use_case, inputs, world_fit.TEST_STEPS, seed=seed, phase="test",
                             episode_steps=DEFAULT_EPISODE_STEPS, settings=settings)
-        choices = calibrate._choices(seed, world.n_servers, calibrate.TEST_STEPS)
+        choices = world_fit._choices(seed, world.n_servers, world_fit.TEST_STEPS)
         if reading == "topology":
-            latencies = calibrate.method_latencies_s(world, choices)
+            latencies = world_fit.method_latencies_s(world, choices)
         else:
             world, median_s = condition_by_load(world, inputs, seed)
             latencies = latencies_by_load(world, median_s, choices)
         oracle = np.percentile(latencies[ORACLE], PERCENTILES)
-        per_seed.append({calibrate.cell_key(m, p): float(q / o) for m in calibrate.X1_BASELINES
+        per_seed.append({world_fit.cell_key(m, p): float(q / o) for m in world_fit.X1_BASELINES
                          for p, q, o in zip(PERCENTILES, np.percentile(latencies[m], PERCENTILES),
                                             oracle, strict=True)})
-    value, _, means = calibrate.objective(per_seed)
+    value, _, means = world_fit.objective(per_seed)
     return value, means
 
 
@@ -94,7 +94,7 @@ def main() -> None:
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     candidates = [c for c in calibrate.grid_candidates() if c["load_start"] == "per_server"]
-    implied = calibrate.implied_over_oracle()
+    implied = world_fit.implied_over_oracle()
     print("implied  " + " ".join(f"{m[:-2]:>7}p{p}={v:.2f}" for (m, p), v in implied.items()))
     for reading in ("topology", "load-level"):
         scored = sorted(((objective(c, seeds, reading), c) for c in candidates), key=lambda s: s[0][0])

@@ -22,7 +22,7 @@ from yafs_safetail.edge.calibration import (
     world_settings,
 )
 from yafs_safetail.results.paper import PAPER_RATIOS
-from yafs_safetail.runs import calibrate
+from yafs_safetail.runs import calibrate, world_fit
 from yafs_safetail.runs.workers import MethodsJob
 
 REPOSITORY = Path(__file__).resolve().parents[1]
@@ -32,26 +32,26 @@ TINY_GRID = {"load_start": ("per_server",), "load_peak_users": (3.0, 4.5),
 
 
 def test_implied_cells_are_the_published_ratios_combined():
-    implied = calibrate.implied_over_oracle()
+    implied = world_fit.implied_over_oracle()
     assert len(implied) == 12
     # facts.md: Rand-1 median = 1.72 (SafeTail over Rand-1) x 1.08 (Oracle over SafeTail).
     assert implied[("Rand-1", 50)] == pytest.approx(1.72 * 1.08)
     assert implied[("MinProp-1", 99)] == pytest.approx(1.89 / 0.79)
-    consumed = calibrate.consumed_numbers()
+    consumed = world_fit.consumed_numbers()
     assert len(consumed) == 16 and {r.use_case for r in consumed} == {1}
     held_out = [r for r in PAPER_RATIOS if r not in consumed]
     assert len(held_out) == 7 and {r.use_case for r in held_out} == {2, 3}
 
 
 def test_objective_is_zero_at_the_implied_cells_and_symmetric_in_log():
-    exact = {calibrate.cell_key(m, p): v for (m, p), v in calibrate.implied_over_oracle().items()}
-    value, within, means = calibrate.objective([exact, exact])
+    exact = {world_fit.cell_key(m, p): v for (m, p), v in world_fit.implied_over_oracle().items()}
+    value, within, means = world_fit.objective([exact, exact])
     assert value == 0.0 and within == 1.0 and means == pytest.approx(exact)
     double = {k: 2 * v for k, v in exact.items()}
     half = {k: v / 2 for k, v in exact.items()}
-    assert calibrate.objective([double])[0] == pytest.approx(math.log(2))
-    assert calibrate.objective([half])[0] == pytest.approx(math.log(2))
-    assert calibrate.objective([double])[1] == 0.0
+    assert world_fit.objective([double])[0] == pytest.approx(math.log(2))
+    assert world_fit.objective([half])[0] == pytest.approx(math.log(2))
+    assert world_fit.objective([double])[1] == 0.0
 
 
 @pytest.mark.parametrize("candidate", [
@@ -63,13 +63,13 @@ def test_objective_is_zero_at_the_implied_cells_and_symmetric_in_log():
 ])
 @pytest.mark.parametrize("reading", ["paper-text", "original-code"])
 def test_latencies_read_from_the_world_equal_the_simulation(candidate, reading):
-    use_case, inputs, scenario = calibrate._scenario(str(calibrate.DEFAULT_TOPOLOGY),
-                                                     str(calibrate.DEFAULT_PLACEMENT))
-    settings = dataclasses.replace(calibrate.settings_for(candidate), baseline_reading=reading)
-    world = calibrate.build_world(scenario, use_case, inputs, 400, seed=5, phase="test",
+    use_case, inputs, scenario = world_fit._scenario(str(world_fit.DEFAULT_TOPOLOGY),
+                                                     str(world_fit.DEFAULT_PLACEMENT))
+    settings = dataclasses.replace(world_fit.settings_for(candidate), baseline_reading=reading)
+    world = world_fit.build_world(scenario, use_case, inputs, 400, seed=5, phase="test",
                                   settings=settings)
-    read = calibrate.method_latencies_s(world, calibrate.seed_choices(5, world.n_servers, 400))
-    names = ("Oracle", *calibrate.X1_BASELINES)
+    read = world_fit.method_latencies_s(world, world_fit.seed_choices(5, world.n_servers, 400))
+    names = ("Oracle", *world_fit.X1_BASELINES)
     job = MethodsJob(names=names, user_methods=(), seed=5, world=world, step_interval_s=60.0,
                      yafs_dir=None, episode_steps=256, progress_label=None)
     frames, _ = job.run()
@@ -81,7 +81,7 @@ def test_latencies_read_from_the_world_equal_the_simulation(candidate, reading):
 
 
 def test_candidates_take_the_knee_rule_nu():
-    settings = calibrate.settings_for(calibrate.grid_candidates()[0])
+    settings = world_fit.settings_for(calibrate.grid_candidates()[0])
     assert settings.nu is None  # each use case's own ν (the knee rule)
     assert world_settings("calibrated").nu is None
 

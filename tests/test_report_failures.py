@@ -54,10 +54,10 @@ def test_the_heading_names_the_settings_a_run_changed():
 
 
 def test_a_changed_setting_reads_the_same_in_any_run_and_any_folder():
-    from yafs_safetail.settings.declare import _shown
+    from yafs_safetail.settings.declare import shown_value
 
     class UsersMethod:
         spec = "Mine=/some/where/policy.py:Cls"
 
-    assert _shown((UsersMethod(), UsersMethod())) == "Mine=policy.py:Cls,Mine=policy.py:Cls"
-    assert _shown(object()) == "object"  # never a repr with an address
+    assert shown_value((UsersMethod(), UsersMethod())) == "Mine=policy.py:Cls,Mine=policy.py:Cls"
+    assert shown_value(object()) == "object"  # never a repr with an address

@@ -52,9 +52,6 @@ from yafs_safetail.results.paper import (
     speedup_table,
 )
 from yafs_safetail.results.report import (
-    aggregate_markdown,
-    aggregate_table,
-    comparison_markdown,
     frame_markdown,
     summary_markdown,
     write_results,
@@ -69,6 +66,11 @@ from yafs_safetail.results.run_json import (
     RunMetadata,
     read_run_json,
     write_run_json,
+)
+from yafs_safetail.results.seed_tables import (
+    aggregate_markdown,
+    aggregate_table,
+    comparison_markdown,
 )
 from yafs_safetail.results.stats import (
     abs_reward_by_episode,

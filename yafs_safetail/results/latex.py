@@ -1,7 +1,7 @@
 """The cross-seed report's tables as LaTeX files, beside ``REPORT.md``.
 
 Each table is made from the same frame of display strings as its markdown twin
-(:func:`report.aggregate_table`, :func:`report.comparison_table`,
+(:func:`seed_tables.aggregate_table`, :func:`seed_tables.comparison_table`,
 :func:`fidelity.scorecard_tables`), so a ``.tex`` file shows exactly the numbers ``REPORT.md``
 shows, formatted the same way. pandas' ``DataFrame.to_latex`` (which renders through its Styler
 and so needs jinja2) writes a ``table`` float with a booktabs ``tabular``, a caption and a label.
@@ -28,7 +28,7 @@ from yafs_safetail.results.fidelity import (
     scorecard_tables,
 )
 from yafs_safetail.results.files import write_text_atomic
-from yafs_safetail.results.report import (
+from yafs_safetail.results.seed_tables import (
     AGGREGATE_NOTE,
     COMPARISON_NOTE,
     aggregate_table,

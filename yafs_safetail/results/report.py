@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from yafs_safetail.methods.registry import ORACLE, SAFETAIL, sort_methods
+from yafs_safetail.methods.registry import ORACLE, SAFETAIL
 from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.files import (
     MIN_REQUESTS_BEYOND_PERCENTILE,
@@ -45,7 +45,7 @@ PAPER_SOURCE = "Section V of the paper; see docs/results.md"
 # Markdown
 
 
-def _fmt(value: float, digits: int = 3) -> str:
+def format_number(value: float, digits: int = 3) -> str:
     return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else (
         f"{value:.{digits}f}"
     )
@@ -71,7 +71,7 @@ def _speedup_lines(table: pd.DataFrame, method: str, reference: str | None) -> l
         row = [f"{pair_method} over {pair_reference}"]
         for percentile in PERCENTILES:
             entry = part[part["percentile"] == percentile].iloc[0]
-            row += [_fmt(entry["ours"], 2), _fmt(entry["paper"], 2)]
+            row += [format_number(entry["ours"], 2), format_number(entry["paper"], 2)]
         rows.append(row)
     return markdown_table(header, rows) if rows else []
 
@@ -178,9 +178,9 @@ def _latency_lines(summary: pd.DataFrame, reading: str | None = None) -> list[st
         "",
     ]
     rows = [
-        [m, _fmt(r.p50_s), _fmt(r.p90_s), _fmt(r.p95_s), _fmt(r.p99_s),
-         _fmt(r.mean_access_rate), _fmt(r.mean_n_selected, 2), _fmt(r.mean_target_s),
-         _fmt(r.target_met_rate), _fmt(r.fallback_rate)]
+        [m, format_number(r.p50_s), format_number(r.p90_s), format_number(r.p95_s), format_number(r.p99_s),
+         format_number(r.mean_access_rate), format_number(r.mean_n_selected, 2), format_number(r.mean_target_s),
+         format_number(r.target_met_rate), format_number(r.fallback_rate)]
         for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)
     ]
     return lines + markdown_table(
@@ -247,12 +247,12 @@ def _failure_energy_lines(summary: pd.DataFrame, run: RunMetadata) -> list[str]:
     if failures.get("down_file"):
         how += f", outages from {failures['down_file']}"
     lines = ["", "## Failures and energy", "",
-             f"Servers fail in this run ({how}); the user waits {_fmt(timeout_s)} s for a reply, then "
+             f"Servers fail in this run ({how}); the user waits {format_number(timeout_s)} s for a reply, then "
              "takes the on-device fallback. Success = a reply within that time; energy = the servers' "
              "compute and the device's radio per request (docs/failures_energy.md).", ""]
     header = {"success_rate": "success", "all_lost_rate": "all lost", "timeout_rate": "timed out",
               "all_refused_rate": "all refused", "energy_j_per_request": "energy per request (J)"}
-    rows = [[m, *(_fmt(getattr(r, c)) for c in header)]
+    rows = [[m, *(format_number(getattr(r, c)) for c in header)]
             for m, r in zip(summary["method"], summary.itertuples(index=False), strict=True)]
     return lines + markdown_table(["method", *header.values()], rows)
 
@@ -302,104 +302,7 @@ def write_results(
 
 
 
-#: The note over the cross-seed latency table (REPORT.md and its LaTeX twin).
-AGGREGATE_NOTE = "Test phase; mean over seeds [95% bootstrap interval over seeds]."
-#: The note over the side-by-side ratio table (REPORT.md and its LaTeX twin).
-COMPARISON_NOTE = (
-    "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
-    "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
-    f"direction ({PAPER_SOURCE})."
-)
-
-
 def frame_markdown(table: pd.DataFrame) -> list[str]:
     """A frame of display strings (see :func:`aggregate_table`) as markdown table lines."""
     return markdown_table([str(c) for c in table.columns],
                           [[str(v) for v in row] for row in table.itertuples(index=False)])
-
-
-def _with_interval(mean: float, low: float, high: float, digits: int) -> str:
-    cell = _fmt(mean, digits)
-    if not math.isnan(low):
-        cell += f" [{low:.{digits}f}, {high:.{digits}f}]"
-    return cell
-
-
-def aggregate_table(stats: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
-    """The cross-seed latency table as display strings, one row per method.
-
-    REPORT.md and the LaTeX tables are both made from this frame, so they show the same numbers.
-
-    Args:
-        stats: from :func:`aggregate_summaries`.
-        digits: decimals shown.
-
-    Returns:
-        Columns ``method, seeds, median (s), p90 (s), p95 (s), p99 (s), mean access rate,
-        mean target (s)``; each metric cell ``mean [low, high]`` (just ``mean`` without an
-        interval, ``—`` when missing).
-    """
-    header = ["method", "seeds", *[PERCENTILE_NAMES[p] + " (s)" for p in PERCENTILES],
-              "mean access rate", "mean target (s)"]
-    metrics = [f"p{p}_s" for p in PERCENTILES] + ["mean_access_rate", "mean_target_s"]
-    rows = []
-    for method in sort_methods(stats["method"]):
-        part = stats[stats["method"] == method].set_index("metric")
-        row = [method, str(int(part["n_seeds"].max()))]
-        for metric in metrics:
-            row.append(_with_interval(part.loc[metric, "mean"], part.loc[metric, "ci_low"],
-                                      part.loc[metric, "ci_high"], digits))
-        rows.append(row)
-    return pd.DataFrame(rows, columns=header, dtype=object)
-
-
-def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
-    """Markdown table of :func:`aggregate_summaries`: one row per method, ``mean [95% interval]``.
-
-    Args:
-        stats: from :func:`aggregate_summaries`.
-        digits: decimals shown.
-
-    Returns:
-        Markdown text ending with a newline.
-    """
-    lines = [AGGREGATE_NOTE, "", *frame_markdown(aggregate_table(stats, digits))]
-    return "\n".join(lines) + "\n"
-
-
-def comparison_table(aggregated: pd.DataFrame, only_stated: bool = False) -> pd.DataFrame:
-    """Our ratios (mean [95% interval]) beside the paper's, as display strings.
-
-    Args:
-        aggregated: from :func:`aggregate_speedups` (several use cases may be concatenated).
-        only_stated: keep only the rows for which the paper states a number.
-
-    Returns:
-        Columns ``use case, comparison, percentile, ours, seeds, paper, differs?``.
-    """
-    rows = []
-    for entry in aggregated.itertuples(index=False):
-        if only_stated and math.isnan(entry.paper):
-            continue
-        rows.append([
-            str(entry.use_case), f"{entry.method} over {entry.reference}",
-            PERCENTILE_NAMES[int(entry.percentile)],
-            _with_interval(entry.mean, entry.ci_low, entry.ci_high, 2), str(entry.n_seeds),
-            _fmt(entry.paper, 2), entry.note,
-        ])
-    return pd.DataFrame(rows, columns=["use case", "comparison", "percentile", "ours", "seeds",
-                                       "paper", "differs?"], dtype=object)
-
-
-def comparison_markdown(aggregated: pd.DataFrame, only_stated: bool = False) -> str:
-    """Side-by-side markdown table of our ratios (mean [95% interval]) and the paper's.
-
-    Args:
-        aggregated: from :func:`aggregate_speedups` (several use cases may be concatenated).
-        only_stated: keep only the rows for which the paper states a number.
-
-    Returns:
-        Markdown text ending with a newline.
-    """
-    lines = [COMPARISON_NOTE, "", *frame_markdown(comparison_table(aggregated, only_stated))]
-    return "\n".join(lines) + "\n"

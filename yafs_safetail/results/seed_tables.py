@@ -34,7 +34,7 @@ from yafs_safetail.results.files import (
 )
 from yafs_safetail.results.over_seeds import SEED_TABLE_METRICS, metrics_over_seeds
 from yafs_safetail.results.paper import PERCENTILE_NAMES
-from yafs_safetail.results.report import frame_markdown
+from yafs_safetail.results.report import PAPER_SOURCE, format_number, frame_markdown
 from yafs_safetail.results.run_json import read_run_json
 
 #: Over the latency table: what its cells are.
@@ -206,3 +206,102 @@ def write_campaign_latency(out: Path, settings: Mapping[str, Mapping[str, Any]],
     write_text_atomic(Path(out) / LATENCY_MD_FILE, text)
     write_text_atomic(Path(out) / LATENCY_CSV_FILE, frame.to_csv(index=False))
     return text
+
+
+# ----------------------------------------------------------------------------- REPORT.md's tables over seeds
+
+#: The note over the cross-seed latency table (REPORT.md and its LaTeX twin).
+AGGREGATE_NOTE = "Test phase; mean over seeds [95% bootstrap interval over seeds]."
+#: The note over the side-by-side ratio table (REPORT.md and its LaTeX twin).
+COMPARISON_NOTE = (
+    "Speed-up of A over B = latency(B) / latency(A) (> 1: A faster). \"ours\" = geometric mean over "
+    "seeds [95% t-interval on the log scale]; \"paper\" = the paper's stated number in the same "
+    f"direction ({PAPER_SOURCE})."
+)
+
+
+def _with_interval(mean: float, low: float, high: float, digits: int) -> str:
+    cell = format_number(mean, digits)
+    if not math.isnan(low):
+        cell += f" [{low:.{digits}f}, {high:.{digits}f}]"
+    return cell
+
+
+def aggregate_table(stats: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
+    """The cross-seed latency table as display strings, one row per method.
+
+    REPORT.md and the LaTeX tables are both made from this frame, so they show the same numbers.
+
+    Args:
+        stats: from :func:`aggregate_summaries`.
+        digits: decimals shown.
+
+    Returns:
+        Columns ``method, seeds, median (s), p90 (s), p95 (s), p99 (s), mean access rate,
+        mean target (s)``; each metric cell ``mean [low, high]`` (just ``mean`` without an
+        interval, ``—`` when missing).
+    """
+    header = ["method", "seeds", *[PERCENTILE_NAMES[p] + " (s)" for p in PERCENTILES],
+              "mean access rate", "mean target (s)"]
+    metrics = [f"p{p}_s" for p in PERCENTILES] + ["mean_access_rate", "mean_target_s"]
+    rows = []
+    for method in sort_methods(stats["method"]):
+        part = stats[stats["method"] == method].set_index("metric")
+        row = [method, str(int(part["n_seeds"].max()))]
+        for metric in metrics:
+            row.append(_with_interval(part.loc[metric, "mean"], part.loc[metric, "ci_low"],
+                                      part.loc[metric, "ci_high"], digits))
+        rows.append(row)
+    return pd.DataFrame(rows, columns=header, dtype=object)
+
+
+def aggregate_markdown(stats: pd.DataFrame, digits: int = 3) -> str:
+    """Markdown table of :func:`aggregate_summaries`: one row per method, ``mean [95% interval]``.
+
+    Args:
+        stats: from :func:`aggregate_summaries`.
+        digits: decimals shown.
+
+    Returns:
+        Markdown text ending with a newline.
+    """
+    lines = [AGGREGATE_NOTE, "", *frame_markdown(aggregate_table(stats, digits))]
+    return "\n".join(lines) + "\n"
+
+
+def comparison_table(aggregated: pd.DataFrame, only_stated: bool = False) -> pd.DataFrame:
+    """Our ratios (mean [95% interval]) beside the paper's, as display strings.
+
+    Args:
+        aggregated: from :func:`aggregate_speedups` (several use cases may be concatenated).
+        only_stated: keep only the rows for which the paper states a number.
+
+    Returns:
+        Columns ``use case, comparison, percentile, ours, seeds, paper, differs?``.
+    """
+    rows = []
+    for entry in aggregated.itertuples(index=False):
+        if only_stated and math.isnan(entry.paper):
+            continue
+        rows.append([
+            str(entry.use_case), f"{entry.method} over {entry.reference}",
+            PERCENTILE_NAMES[int(entry.percentile)],
+            _with_interval(entry.mean, entry.ci_low, entry.ci_high, 2), str(entry.n_seeds),
+            format_number(entry.paper, 2), entry.note,
+        ])
+    return pd.DataFrame(rows, columns=["use case", "comparison", "percentile", "ours", "seeds",
+                                       "paper", "differs?"], dtype=object)
+
+
+def comparison_markdown(aggregated: pd.DataFrame, only_stated: bool = False) -> str:
+    """Side-by-side markdown table of our ratios (mean [95% interval]) and the paper's.
+
+    Args:
+        aggregated: from :func:`aggregate_speedups` (several use cases may be concatenated).
+        only_stated: keep only the rows for which the paper states a number.
+
+    Returns:
+        Markdown text ending with a newline.
+    """
+    lines = [COMPARISON_NOTE, "", *frame_markdown(comparison_table(aggregated, only_stated))]
+    return "\n".join(lines) + "\n"
