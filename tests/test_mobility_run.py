@@ -90,9 +90,11 @@ def test_the_gymnasium_environment_takes_the_mobility_keywords():
                          topology=str(ROOT / "topologies" / "campus_5servers.json"),
                          mobility="random-waypoint", speed_mps=(8.0, 14.0), pause_s=0.0)
     observation, _ = env.reset(seed=1)
-    locations = [observation["user_location"]]
-    for _ in range(3):
+    locations, conditions = [observation["user_location"]], [observation["server_condition"]]
+    for _ in range(30):
         observation, *_ = env.step(env.action_space.sample())
         locations.append(observation["user_location"])
-    assert len({tuple(np.round(loc, 6)) for loc in locations}) == 4
+        conditions.append(observation["server_condition"])
+    assert len({tuple(np.round(loc, 6)) for loc in locations}) == 31
+    assert len({tuple(c.tolist()) for c in conditions}) > 1
     env.close()

@@ -63,7 +63,8 @@ def test_observation_fields_match_the_state_the_selection_sees():
     assert set(observation) == {"server_uplink_bps", "server_downlink_bps", "server_memory_util",
                                 "server_cpu_util", "server_active_users", "server_median_propagation_s",
                                 "server_max_load", "input_bytes", "est_output_bytes", "gamma",
-                                "user_location", "user_uplink_bps", "user_downlink_bps"}
+                                "user_location", "user_uplink_bps", "user_downlink_bps", "server_condition"}
+    assert observation["server_condition"].tolist() == [1, 2, 3, 4, 5]  # the paper topology's links
     for name, value in observation.items():
         np.testing.assert_allclose(value, np.atleast_1d(getattr(omega, name)).astype(np.float32))
     assert "gamma" not in make(use_case=1).reset(seed=1)[0]  # UC1 has no Γ

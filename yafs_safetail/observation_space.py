@@ -14,7 +14,7 @@ from yafs_safetail.methods.safetail.spaces import StateScales, encode_state, sta
 #: ``"dict"``: ω^t field by field; ``"vector"``: SafeTail's scaled state vector.
 OBSERVATION_KINDS = ("dict", "vector")
 _PER_SERVER = ("server_uplink_bps", "server_downlink_bps", "server_memory_util", "server_cpu_util",
-               "server_active_users", "server_median_propagation_s", "server_max_load")
+               "server_active_users", "server_median_propagation_s", "server_max_load", "server_condition")
 _SCALARS = ("input_bytes", "est_output_bytes", "user_uplink_bps", "user_downlink_bps")
 _FRACTIONS = ("server_memory_util", "server_cpu_util")
 

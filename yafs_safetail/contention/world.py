@@ -325,7 +325,8 @@ class ContentionWorld(OnWorldParts):
         return world.observation(
             request % size, np.asarray(active_users, dtype=np.int64), label=request,
             server_max_load=self.server_max_load,
-            median_propagation_s=self.user_median_propagation_s[self.user[request]] if self._per_user else None)
+            median_propagation_s=self.user_median_propagation_s[self.user[request]] if self._per_user else None,
+            server_condition=self.conditions[self.user[request]] if self._per_user else None)
 
     def target_s(self, request: int) -> float:
         """τ (Eq. 4) of request ``request``, from its user's ρ^μ_i."""

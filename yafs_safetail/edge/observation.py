@@ -33,6 +33,10 @@ class Observation:
         user_downlink_bps: Λ^d.
         server_max_load: each server's load limit: a server with this many active users
             refuses a copy, shape (n,), integers (Table I: 4 everywhere).
+        server_condition: each link's condition now, 1 (near) to 5 (far), whose pool ρ^μ_i is
+            the median of, shape (n,), integers: the topology's, or, for a user who moves, the
+            one its distance gives (docs/mobility.md). Not in the paper's state (SafeTail's
+            network reads ρ^μ_i); None only where a caller builds an observation by hand.
         step: the request's index in its phase (to tell requests apart; not part of ω^t and
             not in the Gymnasium observation).
     """
@@ -51,6 +55,7 @@ class Observation:
     user_downlink_bps: float
     server_max_load: np.ndarray
     step: int = -1
+    server_condition: np.ndarray | None = None
 
     def __eq__(self, other: object) -> bool:
         # Field by field, arrays by value (the generated __eq__ would compare arrays

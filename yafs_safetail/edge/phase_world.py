@@ -221,7 +221,8 @@ class EdgeWorld:
 
     def observation(self, step: int, active_users: np.ndarray, *, label: int | None = None,
                     server_max_load: np.ndarray | None = None,
-                    median_propagation_s: np.ndarray | None = None) -> Observation:
+                    median_propagation_s: np.ndarray | None = None,
+                    server_condition: np.ndarray | None = None) -> Observation:
         """ω^t at step ``step`` given each server's current number of active users ℓ_i.
 
         Args:
@@ -231,6 +232,8 @@ class EdgeWorld:
                 world draws its requests in blocks and labels them by their index in the run).
             server_max_load: each server's load limit (default ``max_load`` everywhere).
             median_propagation_s: ρ^μ_i of this request's user (default the topology user's).
+            server_condition: the links' conditions of this request's user (default the
+                topology user's), with ``median_propagation_s``.
         """
         active = np.asarray(active_users, dtype=np.int64)
         # Called once per request: flat takes on small arrays keep it to a few microseconds.
@@ -255,6 +258,9 @@ class EdgeWorld:
             user_downlink_bps=float(self.user_downlink_bps[step]),
             server_max_load=self._max_load_per_server if server_max_load is None else server_max_load,
             step=int(step if label is None else label),
+            server_condition=(server_condition if server_condition is not None
+                              else self._conditions if self.movement is None
+                              else self.movement.conditions[step]),
         )
 
     @cached_property
@@ -282,6 +288,12 @@ class EdgeWorld:
         limits = np.full(self.n_servers, self.max_load, dtype=np.int64)
         limits.setflags(write=False)
         return limits
+
+    @cached_property
+    def _conditions(self) -> np.ndarray:
+        conditions = np.asarray(self.scenario.server_conditions, dtype=np.int64)
+        conditions.setflags(write=False)
+        return conditions
 
     @cached_property
     def _user_location(self) -> np.ndarray:
