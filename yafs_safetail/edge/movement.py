@@ -2,7 +2,8 @@
 
 ``edge.mobility`` says how the user moves (a route, or random waypoint's parameters);
 ``edge.signal`` says what a distance does to a link's condition. This module joins them for
-one phase (:func:`draw_movement`):
+one phase (:func:`draw_movement`; the contention world's users through the same
+steps, :func:`positions_at_m` and :func:`links_at`):
 
 1. each request is sent at ``step · step_interval_s`` on the phase's clock, and the user is
    where the route puts it then. A route file shorter than the phase is walked again from its
@@ -108,6 +109,46 @@ def phase_route(plan: MobilityPlan, scenario: EdgeScenario, duration_s: float,
     return random_waypoint(plan.random_waypoint, (float(start[0]), float(start[1])), duration_s, rng)
 
 
+def positions_at_m(plan: MobilityPlan, route: Route, at_s: np.ndarray) -> np.ndarray:
+    """Where ``route`` puts the user at each time of ``at_s``, shape (m, 2): a route file
+    shorter than ``at_s`` is walked again from its start; a random waypoint covers the phase."""
+    period_s = float(route.times_s[-1])
+    return route.positions_m(at_s % period_s if period_s > 0 and plan.route is not None else at_s)
+
+
+def links_at(plan: MobilityPlan, inputs: TraceInputs, user_m: np.ndarray, servers_m: np.ndarray,
+             rtt_quantiles: np.ndarray, extra_propagation_s: np.ndarray,
+             rtt_fraction: float) -> tuple[np.ndarray, Movement]:
+    """Each (request, server) RTT, and the links' conditions and ρ^μ_i, from where each request
+    is sent.
+
+    Args:
+        plan: how the user moves (its signal rule).
+        inputs: the RTT pools per condition.
+        user_m: where each request is sent from, shape (m, 2).
+        servers_m: each server's position, shape (n, 2).
+        rtt_quantiles: the quantile per (request, server) the world drew, shape (m, n).
+        extra_propagation_s: each server's wired propagation (its links' PR).
+        rtt_fraction: the share of a round trip charged per direction (the world's reading).
+
+    Raises:
+        MovementError: a condition has no RTT pool.
+    """
+    conditions = plan.signal.condition(distances_m(user_m, servers_m))
+    missing = sorted(set(np.unique(conditions).tolist()) - set(inputs.rtt_pools_s))
+    if missing:
+        raise MovementError(f"{plan.source}: conditions {missing}: the propagation trace has no RTT pool for them")
+    rtt_s = np.empty(conditions.shape)
+    median_s = np.empty(conditions.shape)
+    for condition in np.unique(conditions).tolist():
+        pool = inputs.rtt_pools_s[condition] * rtt_fraction
+        here = conditions == condition
+        rtt_s[here] = quantile_lookup(pool, rtt_quantiles[here])
+        median_s[here] = float(np.median(pool))
+    extra = np.asarray(extra_propagation_s, dtype=float)[None, :]
+    return rtt_s + extra, Movement(user_m, conditions, median_s + extra, plan.source)
+
+
 def draw_movement(plan: MobilityPlan, scenario: EdgeScenario, inputs: TraceInputs,
                   rtt_quantiles: np.ndarray, extra_propagation_s: np.ndarray, rtt_fraction: float,
                   step_interval_s: float, rng: np.random.Generator) -> tuple[np.ndarray, Movement]:
@@ -129,19 +170,5 @@ def draw_movement(plan: MobilityPlan, scenario: EdgeScenario, inputs: TraceInput
     n_steps, _ = rtt_quantiles.shape
     send_s = np.arange(n_steps) * step_interval_s
     route = phase_route(plan, scenario, float(send_s[-1]) if n_steps else 0.0, rng)
-    period_s = float(route.times_s[-1])
-    at_s = send_s % period_s if period_s > 0 and plan.route is not None else send_s
-    user_m = route.positions_m(at_s)
-    conditions = plan.signal.condition(distances_m(user_m, server_positions_m(scenario)))
-    missing = sorted(set(np.unique(conditions).tolist()) - set(inputs.rtt_pools_s))
-    if missing:
-        raise MovementError(f"{plan.source}: conditions {missing}: the propagation trace has no RTT pool for them")
-    rtt_s = np.empty(conditions.shape)
-    median_s = np.empty(conditions.shape)
-    for condition in np.unique(conditions).tolist():
-        pool = inputs.rtt_pools_s[condition] * rtt_fraction
-        here = conditions == condition
-        rtt_s[here] = quantile_lookup(pool, rtt_quantiles[here])
-        median_s[here] = float(np.median(pool))
-    extra = np.asarray(extra_propagation_s, dtype=float)[None, :]
-    return rtt_s + extra, Movement(user_m, conditions, median_s + extra, plan.source)
+    return links_at(plan, inputs, positions_at_m(plan, route, send_s), server_positions_m(scenario),
+                    rtt_quantiles, extra_propagation_s, rtt_fraction)
