@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.edge.calibration import world_settings
@@ -30,7 +30,12 @@ from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
 from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, LearnerConfig, scaled_steps
 from yafs_safetail.settings.declare import check_config, field_of, setting_of
-from yafs_safetail.settings.experiment import ExperimentConfig, ExperimentError, learner_config
+from yafs_safetail.settings.experiment import (
+    ExperimentConfig,
+    ExperimentError,
+    Mobility,
+    learner_config,
+)
 from yafs_safetail.settings.input_paths import resolve_input
 from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
 
@@ -132,29 +137,68 @@ def energy_model(config: ExperimentConfig, style: str = "option") -> EnergyModel
     return EnergyModel(server=ServerPowerModel(idle_w=idle_w, max_w=max_w))
 
 
-def mobility_plan(config: ExperimentConfig, scenario: EdgeScenario, style: str = "option") -> MobilityPlan | None:
-    """How the run's user moves, from its options (the route file read once, to check it).
+class MobilitySettings(Protocol):
+    """The settings of how users move (``settings.experiment.Mobility``'s fields): the
+    experiment's, and the contention world's, which declares the same settings."""
+
+    @property
+    def mobility(self) -> str: ...
+    @property
+    def route(self) -> Path | None: ...
+    @property
+    def speed_mps(self) -> tuple[float, float]: ...
+    @property
+    def pause_s(self) -> float: ...
+
+
+def _mobility_label(name: str, style: str) -> str:
+    """How an error names the mobility setting ``name`` (the same in every configuration)."""
+    return setting_of(field_of(Mobility, name)).label(name, style)
+
+
+def check_mobility_settings(config: MobilitySettings, style: str = "option",
+                            error: type[ValueError] = ExperimentError) -> None:
+    """The mobility settings that do not go together, without reading any file.
 
     Raises:
-        ExperimentError: a route without ``--mobility route`` or the reverse, random waypoint's
-            speeds or pause without it, or a topology that does not place every server.
-        RouteError: a bad route file (one line: file, point, what is wrong).
+        ValueError: (``error``) a route without ``--mobility route`` or the reverse, or random
+            waypoint's speeds or pause without it.
     """
     mode = config.mobility
     if mode == "route" and config.route is None:
-        raise ExperimentError(f"{_label('mobility', style)} route: needs {_label('route', style)} FILE")
+        raise error(f"{_mobility_label('mobility', style)} route: needs {_mobility_label('route', style)} FILE")
     if config.route is not None and mode != "route":
-        raise ExperimentError(f"{_label('route', style)}: only with {_label('mobility', style)} route")
+        raise error(f"{_mobility_label('route', style)}: only with {_mobility_label('mobility', style)} route")
     if mode != "random-waypoint":
         for name in ("speed_mps", "pause_s"):
-            if getattr(config, name) != field_of(ExperimentConfig, name).default:
-                raise ExperimentError(f"{_label(name, style)}: only with {_label('mobility', style)} random-waypoint")
+            if getattr(config, name) != field_of(Mobility, name).default:
+                raise error(f"{_mobility_label(name, style)}: only with "
+                            f"{_mobility_label('mobility', style)} random-waypoint")
+
+
+def mobility_plan(config: MobilitySettings, scenario: EdgeScenario, style: str = "option",
+                  error: type[ValueError] = ExperimentError) -> MobilityPlan | None:
+    """How the run's users move, from its settings (the route file read once, to check it).
+
+    Args:
+        config: the experiment's or the contention world's configuration.
+        scenario: the topology (every server's position, the user's start).
+        style: how errors name a setting (as :func:`world_recipe`).
+        error: what a bad combination raises (the contention world's own error there).
+
+    Raises:
+        ValueError: (``error``) settings that do not go together
+            (:func:`check_mobility_settings`), or a topology that does not place every server.
+        RouteError: a bad route file (one line: file, point, what is wrong).
+    """
+    check_mobility_settings(config, style, error)
+    mode = config.mobility
     if mode == "off":
         return None
     try:
         server_positions_m(scenario)
-    except MovementError as error:
-        raise ExperimentError(f"{_label('mobility', style)} {mode}: {error}") from None
+    except MovementError as problem:
+        raise error(f"{_mobility_label('mobility', style)} {mode}: {problem}") from None
     if mode == "route":
         assert config.route is not None
         return MobilityPlan(route=read_route(input_file(config.route), scenario.topology.origin))
