@@ -61,7 +61,23 @@ def add_output_options(parser: argparse.ArgumentParser, config_class: type[Conte
 def contention_base(args: argparse.Namespace, seed: int) -> ContentionConfig:
     """The contention world every point of a sweep shares, from the options."""
     base: ContentionConfig = config_from_args(args, ContentionConfig, seed=seed)
+    check_mobility(base)
     return base
+
+
+def check_mobility(base: ContentionConfig) -> None:
+    """How the users move, checked before any point runs (one line, named as the options): the
+    options that go together and, on the move, a topology that places every server and a
+    route file read whole (a point would otherwise fail only once the campaign runs it)."""
+    from yafs_safetail.settings.world_recipe import check_mobility_settings
+
+    check_mobility_settings(base, "option", ContentionError)
+    if base.mobility == "off":
+        return
+    from yafs_safetail.edge.scenario import load_scenario
+    from yafs_safetail.settings.world_recipe import mobility_plan
+
+    mobility_plan(base, load_scenario(Path(base.topology), Path(base.placement)), "option", ContentionError)
 
 
 def check_methods(config: ContentionSweep) -> None:
@@ -151,6 +167,7 @@ def sweep_run_json(config: ContentionSweep, command: str, kind: str, specs: Sequ
         "methods": list(config.methods), "test_requests": config.test_requests,
         "topology": str(base.topology),
         "placement": str(base.placement), "user_conditions": str(base.user_conditions),
+        **base.mobility_settings(),  # nothing when the users stay put
         f"{config.axis.folder}_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}
 
 

@@ -37,7 +37,7 @@ from yafs_safetail.settings.declare import (
     setting,
     setting_of,
 )
-from yafs_safetail.settings.experiment import Task, WorldInputs
+from yafs_safetail.settings.experiment import Mobility, Task, WorldInputs
 from yafs_safetail.settings.world import WORLD_OVERRIDES, WorldOverrides
 
 if TYPE_CHECKING:
@@ -139,6 +139,16 @@ class ContentionConfig(WorldOverrides):
         "the default: no server ever fails and no time-out, the paper's world)", check=FAILURES, flag="")
     energy: EnergyModel = setting(EnergyModel(), "the servers' and the devices' power models that price every copy",
                                   check=ENERGY, flag="")
+    # How the users move: the experiment's settings (docs/mobility.md), last so that every
+    # earlier field keeps its place.
+    mobility: str = same_as(
+        Mobility, "mobility", help="how the users move, each on its own: off, random-waypoint (each user its own "
+        "route from the topology's user position) or route (--route: every user the same route); on the move "
+        "each link's condition follows the user's distance to its server, so the topology must place every "
+        "edge server (e.g. topologies/campus_5servers.json)")
+    route: Path | None = same_as(Mobility, "route")
+    speed_mps: tuple[float, float] = same_as(Mobility, "speed_mps")
+    pause_s: float = same_as(Mobility, "pause_s")
 
     #: What check_config raises for a bad field.
     setting_error: ClassVar[type[ValueError]] = ContentionError
@@ -146,6 +156,25 @@ class ContentionConfig(WorldOverrides):
     def with_world_overrides(self, settings: Mapping[str, Any]) -> ContentionConfig:
         """This configuration with the world overrides a sweep point's ``settings`` record."""
         return replace(self, **{name: settings[name] for name in WORLD_OVERRIDES if name in settings})
+
+    def mobility_settings(self) -> dict[str, Any]:
+        """How the users move, as a sweep point's settings record it (JSON values, the route's
+        path absolute); nothing with mobility off, so the run id of a point whose users stay put
+        is what it was before users could move."""
+        if self.mobility == "off":
+            return {}
+        return {"mobility": self.mobility, "route": None if self.route is None else str(Path(self.route).resolve()),
+                "speed_mps": [float(v) for v in self.speed_mps], "pause_s": float(self.pause_s)}
+
+    def with_mobility(self, settings: Mapping[str, Any]) -> ContentionConfig:
+        """This configuration with how the users move, as :meth:`mobility_settings` records it
+        (absent: they stay put)."""
+        if settings.get("mobility", "off") == "off":
+            return self
+        route = settings["route"]
+        slowest, fastest = (float(v) for v in settings["speed_mps"])
+        return replace(self, mobility=settings["mobility"], route=None if route is None else Path(route),
+                       speed_mps=(slowest, fastest), pause_s=float(settings["pause_s"]))
 
 
 def check_contention_config(config: ContentionConfig, style: str = "option") -> None:
@@ -157,6 +186,11 @@ def check_contention_config(config: ContentionConfig, style: str = "option") -> 
         raise ContentionError(f"{setting_of(field_of(ContentionConfig, 'load')).label('load', style)} / "
                               f"{setting_of(field_of(ContentionConfig, 'rate_per_user_hz')).label('rate_per_user_hz', style)}"
                               ": give one of them")
+    if config.mobility != "off" and config.user_conditions != "topology":
+        raise ContentionError(f"{setting_of(field_of(ContentionConfig, 'user_conditions')).label('user_conditions', style)}"
+                              f" {config.user_conditions}: only with "
+                              f"{setting_of(field_of(ContentionConfig, 'mobility')).label('mobility', style)} off "
+                              "(a user who moves has each link's condition from its distance)")
 
 
 def read_arrivals(path: Path, users: int) -> tuple[np.ndarray, np.ndarray]:

@@ -281,7 +281,7 @@ class ContentionSweep:
             # are part of every point's run id: they stay as the first sweeps wrote them.
             "target": self.target, "learner": list(self.objectives), "dispatch": self.dispatch,
             "test_requests": self.test_requests, "value_networks": self.networks_averaged,
-            **base.world_overrides(),
+            **base.world_overrides(), **base.mobility_settings(),
         }
 
     @staticmethod
@@ -293,7 +293,7 @@ class ContentionSweep:
             # Absent from the folders of earlier versions, whose links were read at the start.
             links=settings.get("links", "at-start"), world=settings["world"],
             topology=Path(settings["topology"]), placement=Path(settings["placement"]),
-            user_conditions=settings["user_conditions"]).with_world_overrides(settings)
+            user_conditions=settings["user_conditions"]).with_world_overrides(settings).with_mobility(settings)
         # One learner's name in the folders of earlier versions, which trained one SafeTail.
         learners = settings["learner"]
         return dict(base=base, methods=tuple(settings["methods"]), safetail=settings["safetail"],

@@ -8,7 +8,8 @@ What changes from the paper's single-user world (``edge.world``), and what does 
   the single-user world does (the same parts, ``edge.world_parts``, drawn in blocks). Each
   user has its own distance condition to each server (``user_conditions``): the topology's
   (every user where the topology's user is), generated around it, or read from a JSON file;
-  its RTTs, ρ^μ_i and τ follow from them.
+  its RTTs, ρ^μ_i and τ follow from them. With ``mobility`` on, the users move instead
+  (``contention.moving_users``): each request's conditions follow its user's distances then.
 * **Servers.** A copy holds one of its server's slots while it computes (``capacity``, default
   Table I's load limit 4; the topology may set it per server); a full server refuses (the
   paper) or queues the copy FIFO (option). The running copies and the background tenants share
@@ -55,10 +56,12 @@ from yafs_safetail.contention.config import (
     user_conditions,
 )
 from yafs_safetail.contention.engine import EngineSettings, RequestBlock, ServerSpec
+from yafs_safetail.contention.moving_users import MovingUsers
 from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.edge.failures import DownIntervals, effective_timeout_s, phase_down_intervals
 from yafs_safetail.edge.inputs import TraceInputs, worst_case_copy_latency_s
 from yafs_safetail.edge.latency import target_latency_s
+from yafs_safetail.edge.movement import Movement
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.edge.sampling import draw_servers, link_scales, phase_seed_sequence, propagation
 from yafs_safetail.edge.scenario import EdgeScenario
@@ -66,6 +69,7 @@ from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, phase_streams
 from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
 from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
+from yafs_safetail.settings.world_recipe import mobility_plan
 
 __all__ = [
     "BACKGROUND_PERIOD_S", "ContentionWorld", "compute_speed_table",
@@ -127,8 +131,13 @@ class ContentionWorld(OnWorldParts):
         self.emit_s, self.user = self._arrivals()
         self.conditions = user_conditions(config, self.scenario, tuple(sorted(self.inputs.rtt_pools_s)))
         self._per_user = bool(np.any(self.conditions != np.asarray(self.scenario.server_conditions)))
+        plan = mobility_plan(config, self.scenario, "field", ContentionError)
+        #: The users' routes (None: every user stays where its conditions put it).
+        self.moving_users: MovingUsers | None = None if plan is None else MovingUsers(
+            plan, self.scenario, self.inputs, self.emit_s, self.user, config.users, config.seed, config.phase)
         self._current: tuple[int, EdgeWorld] | None = None
         self._block_rtt_s: np.ndarray | None = None
+        self._block_movement: Movement | None = None  # the current block's, when the users move
         # τ per request, filled a block at a time as blocks are built: a request that completes
         # after the next block has started reads its τ here instead of rebuilding its block.
         self._target_s = np.full(len(self.emit_s), np.nan)
@@ -263,15 +272,15 @@ class ContentionWorld(OnWorldParts):
         phase = f"{self.config.phase}:{index}"
         world = self.parts.draw(n_steps, self.config.seed, phase)
         self._current = (index, world)
-        if self._per_user:
+        if self.moving_users is not None:
+            self._block_rtt_s, self._block_movement = self.moving_users.links(
+                index * size, self._rtt_quantiles(world, phase), link_scales(self.scenario).server_extra_propagation_s,
+                self.settings.propagation_rtt_fraction)
+            block_target_s = self._user_target_s(world, self._block_movement.median_propagation_s)
+        elif self._per_user:
             users = self.user[index * size:index * size + n_steps]
             self._block_rtt_s = self._user_rtt_s(world, phase, users)
-            # τ (Eq. 4) from each request's user's ρ^μ_i, for the whole block at once (a fixed
-            # τ of the settings needs no per-user value).
-            block_target_s = world.target_s if self.settings.target_latency_s is not None \
-                else np.asarray(target_latency_s(
-                world.input_bytes, world.est_output_bytes, world.user_uplink_bps, world.user_downlink_bps,
-                self.user_median_propagation_s[users], world.target_compute_s), dtype=float)
+            block_target_s = self._user_target_s(world, self.user_median_propagation_s[users])
         else:
             self._block_rtt_s, block_target_s = world.rtt_s, world.target_s
         first = index * size
@@ -279,12 +288,25 @@ class ContentionWorld(OnWorldParts):
         self._target_s[first:first + count] = block_target_s[:count]
         return world
 
+    def _user_target_s(self, world: EdgeWorld, median_propagation_s: np.ndarray) -> np.ndarray:
+        """τ (Eq. 4) of the block's requests from each one's ρ^μ_i (its user's), for the whole
+        block at once; a fixed τ of the settings needs no per-user value."""
+        if self.settings.target_latency_s is not None:
+            return world.target_s
+        return np.asarray(target_latency_s(
+            world.input_bytes, world.est_output_bytes, world.user_uplink_bps, world.user_downlink_bps,
+            median_propagation_s, world.target_compute_s), dtype=float)
+
+    def _rtt_quantiles(self, world: EdgeWorld, phase: str) -> np.ndarray:
+        """The RTT quantile per (request, server) the block's world drew (its own stream)."""
+        servers_seq = phase_streams(self.config.seed, phase)["servers"]
+        return draw_servers(servers_seq, self.n_servers, world.n_steps).rtt_quantiles
+
     def _user_rtt_s(self, world: EdgeWorld, phase: str, users: np.ndarray) -> np.ndarray:
         """ρ per (request, server) from each request's user's conditions, with the same RTT
         quantiles the block's world drew (so a user at the topology's conditions sees the same
         RTTs as under ``"topology"``)."""
-        servers_seq = phase_streams(self.config.seed, phase)["servers"]  # the block world's own
-        quantiles = draw_servers(servers_seq, self.n_servers, world.n_steps).rtt_quantiles
+        quantiles = self._rtt_quantiles(world, phase)
         extra_s = link_scales(self.scenario).server_extra_propagation_s
         by_condition = {c: propagation(self.inputs, (c,) * self.n_servers, quantiles, extra_s,
                                        self.settings.propagation_rtt_fraction)[0]
@@ -322,6 +344,12 @@ class ContentionWorld(OnWorldParts):
         """ω^t of request ``request`` (its block must be the current one)."""
         size = self.config.block_requests
         world = self.block_world(request // size)
+        if self._block_movement is not None:  # where the request's user is now
+            movement, step = self._block_movement, request % size
+            return world.observation(
+                step, np.asarray(active_users, dtype=np.int64), label=request, server_max_load=self.server_max_load,
+                median_propagation_s=movement.median_propagation_s[step],
+                server_condition=movement.conditions[step], user_location=movement.user_position_m[step])
         return world.observation(
             request % size, np.asarray(active_users, dtype=np.int64), label=request,
             server_max_load=self.server_max_load,

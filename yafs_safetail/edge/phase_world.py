@@ -222,7 +222,8 @@ class EdgeWorld:
     def observation(self, step: int, active_users: np.ndarray, *, label: int | None = None,
                     server_max_load: np.ndarray | None = None,
                     median_propagation_s: np.ndarray | None = None,
-                    server_condition: np.ndarray | None = None) -> Observation:
+                    server_condition: np.ndarray | None = None,
+                    user_location: np.ndarray | None = None) -> Observation:
         """ω^t at step ``step`` given each server's current number of active users ℓ_i.
 
         Args:
@@ -234,6 +235,8 @@ class EdgeWorld:
             median_propagation_s: ρ^μ_i of this request's user (default the topology user's).
             server_condition: the links' conditions of this request's user (default the
                 topology user's), with ``median_propagation_s``.
+            user_location: where this request's user is (default the topology user's, or the
+                phase's movement's).
         """
         active = np.asarray(active_users, dtype=np.int64)
         # Called once per request: flat takes on small arrays keep it to a few microseconds.
@@ -252,7 +255,8 @@ class EdgeWorld:
             input_bytes=float(self.input_bytes[step]),
             est_output_bytes=float(self.est_output_bytes[step]),
             gamma=self.gamma[step],
-            user_location=(self._user_location if self.movement is None
+            user_location=(user_location if user_location is not None
+                           else self._user_location if self.movement is None
                            else self.movement.user_position_m[step]),
             user_uplink_bps=float(self.user_uplink_bps[step]),
             user_downlink_bps=float(self.user_downlink_bps[step]),

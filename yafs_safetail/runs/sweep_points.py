@@ -34,6 +34,8 @@ def point_run_id(settings: Mapping[str, Any], kind: str = LOAD_POINT) -> str:
         identity[key] = file_identity(Path(settings[key]))
     if settings["user_conditions"] not in ("topology", "generated"):
         identity["user_conditions"] = file_identity(Path(settings["user_conditions"]))
+    if settings.get("route") is not None:  # the route's contents, not only its name
+        identity["route"] = file_identity(Path(settings["route"]))
     canonical = json.dumps(identity, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
 
