@@ -35,7 +35,11 @@ from yafs_safetail.cli import (
     invocation,
     print_result,
 )
-from yafs_safetail.runs.engine_options import add_engine_options, engine_free_command
+from yafs_safetail.runs.engine_options import (
+    add_engine_options,
+    engine_free_command,
+    engine_keywords,
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -61,8 +65,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {line}", file=sys.stderr)
         return EXIT_BAD_INPUT
     command = engine_free_command(invocation("experiments/campaign.py"), sys.argv[1:] if argv is None else argv)
-    result = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
-                          ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    result = run_campaign(specs, args.out, command=command, **engine_keywords(args))
     from yafs_safetail.results.seed_tables import write_campaign_latency
     from yafs_safetail.runs.campaign import DONE, EARLIER
 

@@ -37,7 +37,7 @@ from yafs_safetail.cli import (
     print_result,
 )
 from yafs_safetail.defaults import DATA_ROOT, MOBILITY_SPEEDS_MPS
-from yafs_safetail.runs.engine_options import add_engine_options
+from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.declare import one_of, setting
 from yafs_safetail.settings.experiment import ExperimentConfig
 from yafs_safetail.settings.options import add_list_options, add_options
@@ -108,8 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         named = SWEEP_RUN_FOLDER.replace("{speed}", speed)
         specs += expand({**base, "speed_mps": list(MOBILITY_SPEEDS_MPS[speed])}, {"seed": list(args.seeds)},
                         name=named, source="mobility_sweep.py")
-    outcome = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
-                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    outcome = run_campaign(specs, args.out, command=command, **engine_keywords(args))
     if outcome.failed:
         print(f"error: {outcome.failed} run(s) failed (see above); no tables written; rerun the "
               "same command to retry them (finished runs are kept)", file=sys.stderr)

@@ -57,7 +57,7 @@ from yafs_safetail.cli import (
     print_result,
 )
 from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.runs.engine_options import add_engine_options
+from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.declare import field_of, setting_of
 from yafs_safetail.settings.experiment import (
     ExperimentConfig,
@@ -133,8 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     specs = expand(base,
                    {"use_case": list(args.uc), "preset": list(args.preset), "seed": list(args.seeds)},
                    name=RUN_FOLDER, source="reproduce_all.py")
-    outcome = run_campaign(specs, args.out, engine=args.engine, workers=args.workers,
-                           ray_address=args.ray_address, command=command, overwrite=args.overwrite)
+    outcome = run_campaign(specs, args.out, command=command, **engine_keywords(args))
     if outcome.failed:
         print(f"error: {outcome.failed} run(s) failed (see above); no report written; rerun the "
               "same command to retry them (finished runs are kept)", file=sys.stderr)

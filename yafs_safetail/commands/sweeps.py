@@ -19,7 +19,7 @@ from yafs_safetail import __version__
 from yafs_safetail.cli import add_plumbing, add_verbosity_options
 from yafs_safetail.contention.config import ContentionConfig, ContentionError
 from yafs_safetail.contention.sweep_config import SWEEP_WORLD, ContentionSweep
-from yafs_safetail.runs.engine_options import add_engine_options
+from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.options import add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
 
@@ -139,9 +139,8 @@ def run_points(out: Path, specs: Mapping[int, Sequence[RunSpec]], args: argparse
     from yafs_safetail.runs.campaign import run_campaign
     from yafs_safetail.runs.output import SWEEP_FILE
 
-    result = run_campaign([spec for seed_specs in specs.values() for spec in seed_specs], out, engine=args.engine,
-                          workers=args.workers, ray_address=args.ray_address, command=command,
-                          overwrite=args.overwrite)
+    result = run_campaign([spec for seed_specs in specs.values() for spec in seed_specs], out, command=command,
+                          **engine_keywords(args))
     if result.failed:
         return None
     return {seed: pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in seed_specs], ignore_index=True)

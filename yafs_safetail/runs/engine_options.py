@@ -14,6 +14,7 @@ import os
 import shlex
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TypedDict
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +56,22 @@ def add_engine_options(parser: argparse.ArgumentParser) -> None:
                         help="local worker processes (default) or Ray (pip install -e .[ray])")
     parser.add_argument("--ray-address", default=None, metavar="HOST:PORT",
                         help="run on this existing Ray cluster (implies --engine ray)")
+
+
+class EngineKeywords(TypedDict):
+    """``runs.campaign.run_campaign``'s keywords for where and how its runs go."""
+
+    engine: str
+    workers: int | None
+    ray_address: str | None
+    overwrite: bool
+
+
+def engine_keywords(args: argparse.Namespace) -> EngineKeywords:
+    """What :func:`add_engine_options` (and a command's ``--overwrite``) parsed, as
+    ``run_campaign``'s keywords: every campaign command starts it the same way."""
+    return EngineKeywords(engine=args.engine, workers=args.workers, ray_address=args.ray_address,
+                          overwrite=args.overwrite)
 
 
 def engine_free_command(program: Sequence[str], argv: Sequence[str]) -> str:
