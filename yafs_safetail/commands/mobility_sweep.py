@@ -97,9 +97,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             "topology": str(args.topology), "mobility": "random-waypoint", "pause_s": args.pause_s,
             "figures": args.figures, "figure_formats": args.figure_formats}
     # Only when given, so that a sweep without them keeps its runs' ids.
-    for name in ("placement", "step_interval_s", "baseline_reading"):
-        if getattr(args, name) is not None and getattr(args, name) != getattr(ExperimentConfig(), name):
-            base[name] = str(args.placement) if name == "placement" else getattr(args, name)
+    if args.placement is not None:
+        base["placement"] = str(args.placement)
+    for name in ("step_interval_s", "baseline_reading"):
+        if getattr(args, name) != getattr(ExperimentConfig(), name):
+            base[name] = getattr(args, name)
     if args.methods:
         base["methods"] = list(args.methods)
     # One campaign: every (speed, seed) a run, resumable and in parallel, at OUT/<speed>/seed<S>.

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from yafs_safetail.edge.positions import EARTH_RADIUS_M, Origin, PositionError, check_degrees
+from yafs_safetail.edge.positions import Origin, PositionError, check_degrees, project_m
 
 MOBILITY_MODELS = ("off", "random-waypoint", "route")
 ROUTE_SUFFIXES = (".csv", ".gpx")
@@ -108,11 +108,10 @@ def read_route(path: Path, origin: Origin | None) -> Route:
 
 
 def project_route_m(lat_lon_deg: np.ndarray, origin: Origin) -> np.ndarray:
-    """``edge.positions.project_m`` for every (lat, lon) row at once: shape (k, 2) metres."""
-    east_deg = (lat_lon_deg[:, 1] - origin.lon_deg + 180.0) % 360.0 - 180.0
-    x_m = EARTH_RADIUS_M * np.radians(east_deg) * math.cos(math.radians(origin.lat_deg))
-    y_m = EARTH_RADIUS_M * np.radians(lat_lon_deg[:, 0] - origin.lat_deg)
-    return np.stack([x_m, y_m], axis=-1)
+    """``edge.positions.project_m`` of every (lat, lon) row: shape (k, 2) metres (a route is
+    read once, so one point at a time costs nothing that matters)."""
+    return np.asarray([project_m(float(lat), float(lon), origin) for lat, lon in lat_lon_deg],
+                      dtype=float).reshape(-1, 2)
 
 
 def _number(source: str, where: str, name: str, text: str | None) -> float:
