@@ -745,3 +745,15 @@ def test_load_sweep_over_seeds(tmp_path):
                                  timeout=120)
         assert refused.returncode == 2 and message in refused.stderr and "Traceback" not in refused.stderr
     assert not (tmp_path / "b").exists()
+
+
+def test_load_sweep_trains_the_original_codes_targets_as_safetail_q(tmp_path):
+    out = tmp_path / "sweep"
+    done = sweep_here("--users", "10", "--loads", "0.5", "--steps-scale", "0.02", "--methods", "Tied",
+                      "--objectives", "q-target", "--seed", "2", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    [safetail] = json.loads((out / "run.json").read_text())["safetails"]
+    assert (safetail["name"], safetail["learner"], safetail["preset"]) == ("SafeTail-Q", "q-target", "paper")
+    assert list(pd.read_csv(out / "sweep.csv")["method"]) == ["SafeTail-Q", "Tied"]
+    # Unless told, a sweep trains the two SafeTails every contention measurement was made with.
+    assert SweepConfig(base=ContentionConfig(), loads=(0.5,)).objectives == ("target-vector", "value")

@@ -46,13 +46,19 @@ if TYPE_CHECKING:
     from yafs_safetail.contention.world import ContentionWorld
 
 #: The row of each SafeTail learner (``SweepConfig.learners``): the paper's §III learner is
-#: ``SafeTail``; the value learner, which prices its copies by the load they join, is
-#: ``SafeTail-CA`` (contention-aware, beyond the paper: docs/deviations.md D13).
+#: ``SafeTail``; the original code's Q-style targets (D17) are ``SafeTail-Q``; the value learner,
+#: which prices its copies by the load they join, is ``SafeTail-CA`` (contention-aware, beyond
+#: the paper: docs/deviations.md D13).
 SAFETAIL_CA = "SafeTail-CA"
-SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "value": SAFETAIL_CA}
+SAFETAIL_Q = "SafeTail-Q"
+SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "q-target": SAFETAIL_Q, "value": SAFETAIL_CA}
+#: The SafeTails a sweep trains unless ``--objectives`` says otherwise: those every measurement
+#: of the contention world was made with (docs/contention.md).
+DEFAULT_SWEEP_OBJECTIVES: tuple[str, ...] = ("target-vector", "value")
 #: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise:
 #: the paper's as the paper has it; the contention-aware one as it was chosen (D13).
-LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "value": ("tuned", "tied")}
+LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "q-target": ("paper", "all"),
+                                                "value": ("tuned", "tied")}
 #: Every fixed method of the load sweep (the SafeTails are added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
     "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
@@ -182,8 +188,9 @@ class ContentionSweep:
                           "deviation D12 in the documentation)", check=one_of(TARGETS))
     # The run's --objective, several of them: each names one SafeTail the sweep trains.
     objectives: tuple[str, ...] = setting(
-        tuple(SAFETAIL_LEARNERS), "the SafeTails to train by their learners' objectives, comma-separated "
-        "(default both): target-vector (the paper's §III learner, row SafeTail) and value (the same network "
+        DEFAULT_SWEEP_OBJECTIVES, "the SafeTails to train by their learners' objectives, comma-separated "
+        "(default target-vector,value): target-vector (the paper's §III learner, row SafeTail), q-target "
+        "(the original code's Q-style targets, row SafeTail-Q, deviation D17) and value (the same network "
         "predicting each action's latency, its copies priced at dispatch: row SafeTail-CA, deviation D13 in "
         "the documentation)", check=LEARNERS, deprecated=("--learner",))
     dispatch: str | None = setting(

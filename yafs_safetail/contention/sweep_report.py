@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from yafs_safetail.contention.sweep_config import SAFETAIL_CA, SAFETAIL_LEARNERS
+from yafs_safetail.contention.sweep_config import SAFETAIL_CA, SAFETAIL_LEARNERS, SAFETAIL_Q
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, parse_method
 from yafs_safetail.results.files import write_text_atomic
 
@@ -118,6 +118,7 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
 SAFETAIL_STYLE: dict[str, dict[str, Any]] = {
     SAFETAIL: {"color": "tab:red", "label": "SafeTail (paper)"},
     SAFETAIL_CA: {"color": "tab:blue", "label": "SafeTail-CA (contention-aware)"},
+    SAFETAIL_Q: {"color": "tab:purple", "label": "SafeTail-Q (the original code's targets)"},
 }
 
 

@@ -218,10 +218,12 @@ class LearnerOverrides:
         "did not end with a reply (default 0; deviation D15 in the documentation)",
         check=NON_NEGATIVE_NUMBER, optional=True)
     objective: str | None = setting(
-        None, "beyond the paper: SafeTail's learner, target-vector (the paper's §III, the default) or "
-        "value (the network regresses each action's latency score, less the D15 prices when set, "
-        "and copies to busy servers are priced at dispatch: the contention world's SafeTail-CA "
-        "learner; deviations D13, D15 in the documentation)", check=one_of(OBJECTIVES),
+        None, "what SafeTail's network is trained toward: q-target (the original code's Q-style "
+        "targets; the paper preset's default, deviation D17), target-vector (the paper's §III text; "
+        "paper-literal's and tuned's default) or, beyond the paper, value (the network regresses each "
+        "action's latency score, less the D15 prices when set, and copies to busy servers are priced "
+        "at dispatch: the contention world's SafeTail-CA learner; deviations D13, D15 in the "
+        "documentation)", check=one_of(OBJECTIVES),
         optional=True, deprecated=("--learner",))
     n_networks: int | None = setting(
         None, "with --objective value: how many value networks, each from its own initial weights, "

@@ -1,7 +1,15 @@
-"""The SafeTail learner: ε-greedy decisions (Eq. 3), the §III target vector a reward becomes, and
-training rounds on them; or, with the ``"value"`` objective (beyond the paper, D13), the same
-network (or the mean of ``n_networks`` of them) trained to predict each action's latency score
-(the copy price, known at dispatch, is subtracted when choosing)."""
+"""The SafeTail learner: ε-greedy decisions (Eq. 3), what a reward becomes as a training target,
+and training rounds on them.
+
+Three objectives (``LearnerConfig.objective``):
+
+* ``"target-vector"``: §III's target vector, fitted by the softmax's cross-entropy;
+* ``"q-target"``: the original code's targets (facts.md; docs/deviations.md D17): the network's
+  own outputs for the state, the taken action's entry replaced by R + 0.95 · max of its outputs
+  for the next request's state, with the same softmax and cross-entropy;
+* ``"value"`` (beyond the paper, D13): the same network (or the mean of ``n_networks`` of them)
+  trained to predict each action's latency score (the copy price, known at dispatch, is
+  subtracted when choosing)."""
 
 from __future__ import annotations
 
@@ -18,7 +26,7 @@ from yafs_safetail.methods.safetail.network import (
     fast_forward,
     make_round_updates,
 )
-from yafs_safetail.methods.safetail.presets import LearnerConfig
+from yafs_safetail.methods.safetail.presets import Q_TARGET_DISCOUNT, LearnerConfig
 from yafs_safetail.methods.safetail.spaces import n_actions, subset_matrix
 
 
@@ -92,6 +100,11 @@ class SafeTailLearner:
         self._states = np.zeros((capacity, state_dim), dtype=np.float32)
         # One target column per network output: n_networks copies of the action columns.
         self._targets = np.zeros((capacity, config.n_networks * self.n_actions), dtype=np.float32)
+        # q-target only: each tuple's next state, once the next request has come (a tuple
+        # without one is left out of the rounds until it has).
+        q_rows = capacity if config.objective == "q-target" else 0
+        self._next_states = np.zeros((q_rows, state_dim), dtype=np.float32)
+        self._has_next = np.zeros(q_rows, dtype=bool)
         self._n_stored = 0
         self._n_buffered = 0
         self._n_rounds = 0
@@ -165,8 +178,9 @@ class SafeTailLearner:
         Args:
             state: The encoded state the action was chosen for.
             action: The action taken.
-            reward: Its reward: Eq. 5's (<= 0) for the §III objective; any finite value for
-                the ``"value"`` objective, whose network learns to predict it.
+            reward: Its reward: Eq. 5's (<= 0) for the ``"target-vector"`` and ``"q-target"``
+                objectives; any finite value for the ``"value"`` objective, whose network
+                learns to predict it.
 
         Returns:
             True if this call ran a training round.
@@ -180,14 +194,25 @@ class SafeTailLearner:
         if state.shape != (self.state_dim,):
             raise ValueError(f"state must have shape ({self.state_dim},), got {state.shape}")
         slot = self._n_buffered % self.config.replay_capacity
-        if self.config.objective == "value":
+        objective = self.config.objective
+        if objective == "target-vector":
+            self._targets[slot] = target_vector(action, reward, self.n_servers)
+        else:
             if not 0 <= action < self.n_actions or not math.isfinite(reward):
                 raise ValueError(f"action {action!r} or reward {reward!r} out of range")
-            # Only the action taken has a target, in every network; the loss skips the NaN entries.
+            if objective == "q-target" and reward > 0.0:
+                raise ValueError(f"reward must be finite and <= 0 (Eq. 5), got {reward!r}")
+            # Only the action taken has a target, in every network; the value loss skips the
+            # NaN entries and a q-target round fills them in (_q_targets).
             self._targets[slot] = np.nan
             self._targets[slot, action::self.n_actions] = reward
-        else:
-            self._targets[slot] = target_vector(action, reward, self.n_servers)
+        if objective == "q-target":
+            # This state is the previous tuple's next state.
+            if self._n_buffered:
+                previous = (self._n_buffered - 1) % self.config.replay_capacity
+                self._next_states[previous] = state
+                self._has_next[previous] = True
+            self._has_next[slot] = False
         self._states[slot] = state
         self._n_buffered += 1
         self._n_stored += 1
@@ -202,9 +227,14 @@ class SafeTailLearner:
         # The ring buffer holds exactly the most recent n_rows tuples in slots 0..n_rows-1.
         states = self._states[:n_rows]
         targets = self._targets[:n_rows]
+        # The rows a round may draw: q-target waits for a tuple's next state.
+        candidates: int | np.ndarray = n_rows
+        if c.objective == "q-target":
+            targets = self._q_targets(n_rows)
+            candidates = np.flatnonzero(self._has_next[:n_rows])
         if c.replay_sampling == "uniform":
             batches = np.stack([
-                self._shuffle_rng.choice(n_rows, size=c.batch_size, replace=False)
+                self._shuffle_rng.choice(candidates, size=c.batch_size, replace=False)
                 for _ in range(c.updates_per_round)
             ])
             if self._round_updates is None:
@@ -213,13 +243,28 @@ class SafeTailLearner:
         else:
             losses = []
             for _ in range(c.epochs_per_round):
-                order = self._shuffle_rng.permutation(n_rows)
+                order = self._shuffle_rng.permutation(candidates)
                 for start in range(0, n_rows, c.batch_size):
                     batch = order[start:start + c.batch_size]
                     losses.append(float(self._model.train_on_batch(states[batch], targets[batch])))
             self.last_round_loss = float(np.mean(losses))
         self._forward = fast_forward(self._model, self.config)
         self._n_rounds += 1
+
+    def _q_targets(self, n_rows: int) -> np.ndarray:
+        """The q-target objective's targets for the first ``n_rows`` stored tuples, from the
+        network as it stands: its outputs for each state, the taken action's entry replaced by
+        R + γ · max of its outputs for the next state (rows without one keep R there; no
+        round draws them)."""
+        stored = self._targets[:n_rows]
+        taken = np.isfinite(stored)
+        actions = taken.argmax(axis=1)
+        rows = np.arange(n_rows)
+        targets = self.predict_probabilities(self._states[:n_rows]).astype(np.float32)
+        best_next = self.predict_probabilities(self._next_states[:n_rows]).max(axis=1)
+        bootstrap = np.where(self._has_next[:n_rows], Q_TARGET_DISCOUNT * best_next, 0.0)
+        targets[rows, actions] = stored[rows, actions] + bootstrap
+        return targets
 
     def predict_probabilities(self, states: np.ndarray) -> np.ndarray:
         """The Keras model's outputs for a batch of states (for analysis, not speed): softmax
@@ -233,7 +278,7 @@ class SafeTailLearner:
         weights, Adam's slots and step count, the replay buffer, the counters and both random
         generators. :meth:`restore_training_state` on a learner built with the same arguments
         continues exactly where this one stands (same decisions, same updates)."""
-        return {
+        state: dict[str, Any] = {
             "weights": [np.array(w) for w in self._model.get_weights()],
             "optimizer": [np.array(v.numpy()) for v in self._model.optimizer.variables],
             "states": self._states.copy(),
@@ -245,6 +290,10 @@ class SafeTailLearner:
             "explore_rng": self._explore_rng.bit_generator.state,
             "shuffle_rng": self._shuffle_rng.bit_generator.state,
         }
+        if self.config.objective == "q-target":
+            state["next_states"] = self._next_states.copy()
+            state["has_next"] = self._has_next.copy()
+        return state
 
     def restore_training_state(self, state: Mapping[str, Any]) -> None:
         """Continue from :meth:`training_state` of a learner built with the same arguments.
@@ -256,13 +305,17 @@ class SafeTailLearner:
         variables = self._model.optimizer.variables
         if (len(weights) != len(self._model.get_weights()) or len(state["optimizer"]) != len(variables)
                 or state["states"].shape != self._states.shape
-                or state["targets"].shape != self._targets.shape):
+                or state["targets"].shape != self._targets.shape
+                or ("next_states" in state) != (self.config.objective == "q-target")):
             raise ValueError("the checkpoint is of another network or replay buffer")
         self._model.set_weights(weights)
         for variable, value in zip(variables, state["optimizer"], strict=True):
             variable.assign(value)
         self._states[...] = state["states"]
         self._targets[...] = state["targets"]
+        if "next_states" in state:
+            self._next_states[...] = state["next_states"]
+            self._has_next[...] = state["has_next"]
         self._n_stored = int(state["n_stored"])
         self._n_buffered = int(state["n_buffered"])
         self._n_rounds = int(state["n_rounds"])

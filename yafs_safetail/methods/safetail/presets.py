@@ -50,6 +50,8 @@ ORIGINAL_REPLAY_TUPLES = 2500
 # paper: minibatches per training round (one round every κ steps) and their size.
 PAPER_UPDATES_PER_ROUND = 64
 PAPER_BATCH_SIZE = 32
+#: q-target: the discount on the next state's best output (the original code's 0.95, facts.md).
+Q_TARGET_DISCOUNT = 0.95
 #: paper: Adam's learning rate per use case, chosen by docs/calibration.md's rule 3 (the rate of a
 #: log grid whose greedy policy earns the highest mean Eq. 5 test reward on the learner-calibration
 #: seeds; ``python experiments/choose_learning_rate.py``, rerun 2026-11-27 in the refitted world of
