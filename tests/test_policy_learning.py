@@ -28,7 +28,7 @@ from yafs_safetail.methods.safetail import (
     state_dim,
     subset_of,
 )
-from yafs_safetail.methods.safetail.presets import PAPER_LEARNING_RATES, LearnerConfig, get_preset
+from yafs_safetail.methods.safetail.presets import LearnerConfig, get_preset
 from yafs_safetail.methods.safetail.spaces import random_observation
 
 N_SERVERS = 5
@@ -61,6 +61,7 @@ def flat_weights(learner: SafeTailLearner) -> np.ndarray:
 @dataclasses.dataclass
 class ToyResult:
     initial_optimal_fraction: float
+    initial_mean_greedy_reward: float
     optimal_fraction: float
     mean_greedy_reward: float
     relative_weight_change: float
@@ -89,7 +90,7 @@ def run_toy(config: LearnerConfig, seed: int, n_eval: int = 2000) -> ToyResult:
     start = time.perf_counter()
     learner = SafeTailLearner(N_SERVERS, STATE_DIM, config, seed)
     w0 = flat_weights(learner)
-    initial_fraction, _ = evaluate_greedy(learner, seed, n_eval)
+    initial_fraction, initial_reward = evaluate_greedy(learner, seed, n_eval)
     env_rng = np.random.default_rng(seed + 1_000_003)
     for _ in range(config.train_steps):
         obs = random_observation(env_rng, N_SERVERS)
@@ -102,6 +103,7 @@ def run_toy(config: LearnerConfig, seed: int, n_eval: int = 2000) -> ToyResult:
     fraction, mean_reward = evaluate_greedy(learner, seed, n_eval)
     return ToyResult(
         initial_optimal_fraction=initial_fraction,
+        initial_mean_greedy_reward=initial_reward,
         optimal_fraction=fraction,
         mean_greedy_reward=mean_reward,
         relative_weight_change=float(np.linalg.norm(w1 - w0) / np.linalg.norm(w0)),
@@ -131,10 +133,37 @@ def test_tuned_learns_on_a_small_budget() -> None:
     assert result.optimal_fraction > result.initial_optimal_fraction + 0.2
 
 
-def test_paper_learns_on_a_small_budget() -> None:
-    result = run_toy(get_preset("paper", 1, train_steps=2560), seed=3, n_eval=500)
+def best_fixed_action_reward(delta: float, seed: int = 5, n_eval: int = 2000) -> float:
+    """The highest mean Eq. 5 reward any one action earns in every state (the all-five set)."""
+    rng = np.random.default_rng(seed)
+    observations = [random_observation(rng, N_SERVERS) for _ in range(n_eval)]
+    means = []
+    for action in range(2**N_SERVERS - 1):
+        subset = subset_of(action, N_SERVERS)
+        means.append(np.mean([reward(toy_latency_s(obs, subset, rng), TARGET_S, len(subset), N_SERVERS, delta)
+                              for obs in observations]))
+    return float(max(means))
+
+
+def test_paper_learns_the_best_mean_reward_on_a_small_budget() -> None:
+    # paper trains on the original code's Q-style targets (docs/calibration.md rule 7), so its
+    # argmax follows an action's expected Eq. 5 reward, not how often it earns exactly 0. Here no
+    # state-dependent policy beats the all-five set by much: a lone server that meets τ earns
+    # 0, but one that misses costs δ·e^4, and all five cost at most δ when they meet it (D17).
+    config = get_preset("paper", 1, train_steps=2560)
+    result = run_toy(config, seed=3, n_eval=500)
     assert result.final_epsilon == pytest.approx(0.01)
-    # Best state-independent action (one fixed server) is optimal for 40 % of states.
+    assert result.mean_greedy_reward > result.initial_mean_greedy_reward + 0.01
+    assert result.mean_greedy_reward > best_fixed_action_reward(config.delta) - 0.001
+
+
+def test_the_target_vector_learns_which_lone_server_meets_the_target() -> None:
+    # §III's target vector (paper-literal's and tuned's objective) with paper's schedule: the
+    # argmax is the action likeliest to earn exactly 0. The best state-independent action (one
+    # fixed server) is optimal for 40 % of states.
+    config = dataclasses.replace(get_preset("paper", 1, train_steps=2560), objective="target-vector",
+                                 learning_rate=1e-3)
+    result = run_toy(config, seed=3, n_eval=500)
     assert result.optimal_fraction > 0.5
     assert result.optimal_fraction > result.initial_optimal_fraction + 0.2
 
@@ -154,12 +183,10 @@ def test_full_budget_paper_and_tuned_learn_paper_literal_does_not(use_case: int)
     paper = run_toy(get_preset("paper", use_case), seed=11)
     literal = run_toy(get_preset("paper-literal", use_case), seed=11)
     assert tuned.optimal_fraction > 0.8
-    assert paper.optimal_fraction > paper.initial_optimal_fraction + 0.3
-    # Better than the best state-independent action (one fixed server, 0.40) by a margin where
-    # rule 3 chose a rate that moves the network far (1e-3: UC1, UC2); UC3's 1e-5, chosen
-    # because in UC3 a barely trained network already earns the most reward (D6), only just
-    # passes that action here (0.41 on seed 11).
-    assert paper.optimal_fraction > (0.5 if PAPER_LEARNING_RATES[use_case] >= 1e-4 else 0.4)
+    # paper's Q-style targets earn more Eq. 5 reward than the untrained network, but at full
+    # budget not the best state-independent action's (seed 11: -0.0086 against -0.0117 untrained
+    # and -0.0023 for all five, UC1; D17).
+    assert paper.mean_greedy_reward > paper.initial_mean_greedy_reward + 0.1 * abs(paper.initial_mean_greedy_reward)
     assert literal.relative_weight_change < 1e-3
     assert abs(literal.optimal_fraction - literal.initial_optimal_fraction) < 0.05
 

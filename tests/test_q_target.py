@@ -14,13 +14,21 @@ import pytest
 from test_policy_learner import DIM, N, states, tiny_config
 
 from yafs_safetail.methods.safetail import SafeTailLearner
-from yafs_safetail.methods.safetail.presets import Q_TARGET_DISCOUNT
+from yafs_safetail.methods.safetail.presets import Q_TARGET_DISCOUNT, get_preset
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def q_config(**changes: object) -> Any:
     return tiny_config(objective="q-target", **changes)
+
+
+@pytest.mark.parametrize("use_case", [1, 2, 3])
+def test_paper_takes_q_targets_and_the_other_presets_keep_the_target_vector(use_case: int) -> None:
+    # docs/calibration.md rule 7: the evidence rule.
+    assert get_preset("paper", use_case).objective == "q-target"
+    assert get_preset("paper-literal", use_case).objective == "target-vector"
+    assert get_preset("tuned", use_case).objective == "target-vector"
 
 
 def test_targets_are_the_outputs_with_the_taken_entry_bootstrapped_from_the_next_state() -> None:
