@@ -3,6 +3,7 @@ demand, so nothing else would notice that a restructure broke it)."""
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -150,6 +151,25 @@ def test_target_headroom_benchmark_small_budget():
     assert all(line.rsplit("reachable=", 1)[1] in ("yes", "no") for line in verdicts)
 
 
+def test_eq5_policies_benchmark_small_budget():
+    done = subprocess.run(
+        [sys.executable, str(REPOSITORY / "benchmarks" / "eq5_policies.py"), "--seeds", "1000", "--steps", "1000"],
+        capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = {tuple(line.split()[:2]): dict(part.split("=") for part in line.split()[2:])
+            for line in done.stdout.splitlines()}
+    assert {name for _, name in rows} == {"expected_reward", "most_zeros", "best_fixed", "hindsight"}
+    for use_case in ("uc1", "uc2", "uc3"):
+        # Hindsight earns Eq. 5's upper bound, 0, on every request; no policy earns more.
+        assert float(rows[(use_case, "hindsight")]["reward"]) == 0.0
+        assert all(float(row["reward"]) <= 0.0 and 1.0 <= float(row["servers"]) <= 5.0
+                   for (uc, _), row in rows.items() if uc == use_case)
+        assert rows[(use_case, "best_fixed")]["top_subset"] == "1.00"
+    bad = subprocess.run([sys.executable, str(REPOSITORY / "benchmarks" / "eq5_policies.py"), "--steps", "10"],
+                         capture_output=True, text=True, cwd=REPOSITORY, timeout=60)
+    assert bad.returncode == 2 and "--steps" in bad.stderr
+
+
 @pytest.mark.slow  # two TensorFlow processes; its network code is the runs' own, tested there
 def test_training_round_benchmark_small_budget():
     done = subprocess.run(
@@ -160,3 +180,20 @@ def test_training_round_benchmark_small_budget():
     assert set(figures) == {"first_round_s", "first_round_xla_s", "round_ms", "round_xla_ms", "same_weights"}
     assert all(float(figures[name]) > 0 for name in figures if name != "same_weights")
     assert figures["same_weights"] in ("yes", "no")
+
+
+def test_eq5_policies_scores_every_case_as_the_reward_function():
+    from yafs_safetail.methods.safetail.reward import reward
+
+    spec = importlib.util.spec_from_file_location("eq5_policies", REPOSITORY / "benchmarks" / "eq5_policies.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rng = np.random.default_rng(3)
+    latency_s = rng.uniform(0.5, 3.0, (40, 31))
+    target_s = rng.uniform(1.0, 2.0, 40)
+    latency_s[0, 4] = target_s[0]  # case 1: exactly on target
+    n_selected = np.array([bin(a + 1).count("1") for a in range(31)])
+    ours = module.eq5_rewards(latency_s, target_s, n_selected, 5, 0.003)
+    expected = [[reward(latency_s[i, a], target_s[i], n_selected[a], 5, 0.003) for a in range(31)] for i in range(40)]
+    np.testing.assert_allclose(ours, expected, rtol=1e-12, atol=0)
