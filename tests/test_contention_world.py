@@ -441,7 +441,7 @@ def test_sweep_checks_are_computed_from_the_rows():
 
 
 def test_both_safetails_are_checked_and_neither_is_a_fixed_method():
-    from yafs_safetail.contention.sweep_config import SAFETAIL_CA
+    from yafs_safetail.contention.sweep_learners import SAFETAIL_CA
     from yafs_safetail.contention.sweep_report import (
         best_fixed_p99,
         glance_markdown,

@@ -8,7 +8,7 @@ down rises at a fixed load; issue 31); ``contention.sweep_config`` says what eac
 At each point: a training world and a test world (independent streams, same users and
 settings); each SafeTail learns on the training world at that point and is tested greedily;
 every other method runs on the test world only. By default two SafeTails run side by side
-(``sweep_config.SAFETAIL_LEARNERS``): ``SafeTail``, the paper's learner (§III's target vector,
+(``sweep_learners.SAFETAIL_LEARNERS``): ``SafeTail``, the paper's learner (§III's target vector,
 Eq. 5 against τ, copies sent all at once), and ``SafeTail-CA``, the contention-aware one (the
 value learner that prices each copy by the jobs it joins, tied copies; docs/deviations.md D13).
 All methods of a point see the same arrivals, per-request draws and outages (common random
@@ -24,7 +24,8 @@ from typing import Any
 import pandas as pd
 
 from yafs_safetail.contention.run import run_policy, summarise
-from yafs_safetail.contention.sweep_config import ContentionSweep, SafeTailVariant
+from yafs_safetail.contention.sweep_config import ContentionSweep
+from yafs_safetail.contention.sweep_learners import SafeTailVariant
 from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.policy import Policy
 from yafs_safetail.methods.registry import SAFETAIL, make_baseline, method_rng

@@ -1,6 +1,7 @@
 """What a contention sweep is: its axis, methods and SafeTails (:class:`ContentionSweep`; the
 load sweep :class:`SweepConfig`, the failure sweep :class:`FailureSweepConfig`), each field
-declared once with its option and check (``settings.declare.setting``).
+declared once with its option and check (``settings.declare.setting``). Which SafeTails a sweep
+can train, and how each one learns, is ``contention.sweep_learners``.
 
 Light modules only (the standard library, ``defaults``, ``settings``,
 ``contention.config``, ``edge.failure_settings``): the sweep commands build their parsers from
@@ -30,7 +31,15 @@ from yafs_safetail.contention.sweep_checks import (
     METHOD_NAMES,
     ONE_LOAD,
 )
-from yafs_safetail.defaults import PRESET_NAMES, SAFETAIL, SAFETAIL_DISPATCH
+from yafs_safetail.contention.sweep_learners import (
+    DEFAULT_SWEEP_OBJECTIVES,
+    DEFAULT_VALUE_NETWORKS,
+    LEARNER_DEFAULTS,
+    SAFETAIL_LEARNERS,
+    SafeTailVariant,
+    training_requests,
+)
+from yafs_safetail.defaults import PRESET_NAMES, SAFETAIL_DISPATCH
 from yafs_safetail.edge.failure_settings import DEFAULT_MTTR_S, FailureSettings
 from yafs_safetail.settings.declare import (
     BOOLEAN,
@@ -45,20 +54,6 @@ from yafs_safetail.settings.experiment import FailuresAndPower, LearnerOverrides
 if TYPE_CHECKING:
     from yafs_safetail.contention.world import ContentionWorld
 
-#: The row of each SafeTail learner (``SweepConfig.learners``): the paper's §III learner is
-#: ``SafeTail``; the original code's Q-style targets (D17) are ``SafeTail-Q``; the value learner,
-#: which prices its copies by the load they join, is ``SafeTail-CA`` (contention-aware, beyond
-#: the paper: docs/deviations.md D13).
-SAFETAIL_CA = "SafeTail-CA"
-SAFETAIL_Q = "SafeTail-Q"
-SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "q-target": SAFETAIL_Q, "value": SAFETAIL_CA}
-#: The SafeTails a sweep trains unless ``--objectives`` says otherwise: those every measurement
-#: of the contention world was made with (docs/contention.md).
-DEFAULT_SWEEP_OBJECTIVES: tuple[str, ...] = ("target-vector", "value")
-#: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise:
-#: the paper's as the paper has it; the contention-aware one as it was chosen (D13).
-LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "q-target": ("paper", "all"),
-                                                "value": ("tuned", "tied")}
 #: Every fixed method of the load sweep (the SafeTails are added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
     "Oracle", "Rand-1", "Rand-2", "MinLoad-1", "MinLoad-2", "MinProp-1", "MinProp-2", "Hedge", "Tied",
@@ -69,9 +64,6 @@ DEFAULT_FAILURE_METHODS: tuple[str, ...] = (
     "Oracle", "Rand-1", "Rand-2", "Rand-3", "MinLoad-1", "MinLoad-2", "MinLoad-3",
     "MinProp-1", "MinProp-2", "MinProp-3", "Hedge", "Tied",
 )
-#: How many networks the value learner averages unless told (``SweepConfig.value_networks``):
-#: chosen on seeds 0-6 over one network, then judged on seeds 19-30 (docs/deviations.md D13).
-DEFAULT_VALUE_NETWORKS = 3
 #: Every sweep's world unless its options say otherwise (the commands' defaults): 50 users, a full
 #: server queues, no background tenants; the rest is ContentionConfig's own (cancel on reply,
 #: shared links, the paper's topology).
@@ -120,42 +112,6 @@ def _scaled_steps(steps: int, scale: float) -> int:
     from yafs_safetail.methods.safetail.presets import scaled_steps
 
     return scaled_steps(steps, scale)
-
-
-def _train_requests(preset: str, use_case: int, steps_scale: float) -> int:
-    """A SafeTail's training requests per point: its preset's budget × ``steps_scale``."""
-    from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
-
-    return scaled_steps(get_preset(preset, use_case).train_steps, steps_scale)
-
-
-@dataclass(frozen=True)
-class SafeTailVariant:
-    """One SafeTail of a sweep, resolved from the sweep's configuration.
-
-    Attributes:
-        name: its rows' method name (``SafeTail`` or ``SafeTail-CA``).
-        learner: its training objective (one of OBJECTIVES).
-        preset: its learner preset.
-        dispatch: how its subset is sent (all at once or tied).
-        reward: the reward it is trained with (the value learner's own ``latency-cost``).
-        n_networks: how many networks' predictions it averages.
-        train_requests: its training requests per point.
-    """
-
-    name: str
-    learner: str
-    preset: str
-    dispatch: str
-    reward: str
-    n_networks: int
-    train_requests: int
-
-    def describe(self) -> str:
-        """One line for the sweep's report: how this SafeTail learns and sends."""
-        networks = f" ({self.n_networks} networks averaged)" if self.n_networks > 1 else ""
-        return (f"preset `{self.preset}`, learner `{self.learner}`{networks}, reward `{self.reward}`, "
-                f"dispatch `{self.dispatch}`")
 
 
 @dataclass(frozen=True)
@@ -242,7 +198,7 @@ class ContentionSweep:
                 name=SAFETAIL_LEARNERS[learner], learner=learner, preset=preset, dispatch=self.dispatch or dispatch,
                 reward="latency-cost" if value else self.reward,
                 n_networks=self.networks_averaged if value else 1,
-                train_requests=_train_requests(preset, self.base.use_case, self.steps_scale)))
+                train_requests=training_requests(preset, self.base.use_case, self.steps_scale)))
         return tuple(variants)
 
     @property

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from yafs_safetail.contention.sweep_config import SAFETAIL_CA, SAFETAIL_LEARNERS, SAFETAIL_Q
+from yafs_safetail.contention.sweep_learners import SAFETAIL_CA, SAFETAIL_LEARNERS, SAFETAIL_Q
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL, parse_method
 from yafs_safetail.results.files import write_text_atomic
 
