@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -349,6 +350,21 @@ def best_of(x: np.ndarray) -> int:
     return 2 if x[0] > 1.0 else 5
 
 
+def learn_toy_bandit(learner: SafeTailLearner, reward_of: Callable[[np.ndarray, int], float],
+                     steps: int = 3000) -> tuple[float, float, np.ndarray]:
+    """Share of 200 fresh states whose greedy action is :func:`best_of`'s, before and after
+    ``steps`` ε-greedy steps rewarded by ``reward_of``; and those states."""
+    env = np.random.default_rng(7)
+    fresh = env.uniform(0.0, 2.0, (200, DIM)).astype(np.float32)
+    before = float(np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh]))
+    for _ in range(steps):
+        x = env.uniform(0.0, 2.0, DIM).astype(np.float32)
+        a = learner.act(x, explore=True)
+        learner.observe(x, a, reward_of(x, a))
+    after = float(np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh]))
+    return before, after, fresh
+
+
 def toy_reward(x: np.ndarray, action: int) -> float:
     # Positive and negative values: the value objective has no sign restriction.
     return 0.5 if action == best_of(x) else -0.2 - 0.01 * action
@@ -360,14 +376,7 @@ def test_value_objective_learns_which_action_pays(sampling: str) -> None:
                          batch_size=32, epochs_per_round=1, replay_capacity=1024, hidden_widths=(32, 32),
                          learning_rate=3e-3, epsilon_decay=0.0, epsilon_min=1.0)  # pure exploration
     learner = SafeTailLearner(3, DIM, config, seed=5)  # 7 actions
-    env = np.random.default_rng(7)
-    fresh = env.uniform(0.0, 2.0, (200, DIM)).astype(np.float32)
-    before = np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh])
-    for _ in range(3000):
-        x = env.uniform(0.0, 2.0, DIM).astype(np.float32)
-        a = learner.act(x, explore=True)
-        learner.observe(x, a, toy_reward(x, a))
-    after = np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh])
+    before, after, fresh = learn_toy_bandit(learner, toy_reward)
     assert before < 0.6 and after > 0.9, (before, after)
     # The outputs are rewards, not probabilities: the best action's is near its 0.5.
     values = learner.predict_probabilities(fresh[:50])

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_policy_learner import DIM, N, states, tiny_config
+from test_policy_learner import DIM, N, best_of, learn_toy_bandit, states, tiny_config
 
 from yafs_safetail.methods.safetail import SafeTailLearner
 from yafs_safetail.methods.safetail.presets import Q_TARGET_DISCOUNT, get_preset
@@ -88,24 +88,13 @@ def test_observe_rejects_a_positive_reward_and_a_bad_action() -> None:
         learner.observe(x, 31, -0.1)
 
 
-def best_of(x: np.ndarray) -> int:
-    return 2 if x[0] > 1.0 else 5
-
-
 def test_q_targets_learn_which_action_meets_the_target() -> None:
     # Eq. 5's shape: 0 for the action that pays in this state, a penalty for every other.
     config = q_config(replay_sampling="uniform", updates_per_round=32, kappa=64, batch_size=32,
                       replay_capacity=1024, hidden_widths=(32, 32), learning_rate=3e-3,
                       epsilon_decay=0.0, epsilon_min=1.0)  # pure exploration
     learner = SafeTailLearner(3, DIM, config, seed=5)  # 7 actions
-    env = np.random.default_rng(7)
-    fresh = env.uniform(0.0, 2.0, (200, DIM)).astype(np.float32)
-    before = np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh])
-    for _ in range(3000):
-        x = env.uniform(0.0, 2.0, DIM).astype(np.float32)
-        a = learner.act(x, explore=True)
-        learner.observe(x, a, 0.0 if a == best_of(x) else -0.2)
-    after = np.mean([learner.act(x, explore=False) == best_of(x) for x in fresh])
+    before, after, _ = learn_toy_bandit(learner, lambda x, a: 0.0 if a == best_of(x) else -0.2)
     # Every taken action's entry is pulled below its own output (0.95 of the next state's best),
     # the paying one least, so the argmax turns to it more slowly than a classifier's would.
     assert before < 0.3 and after > 0.75, (before, after)
