@@ -6,7 +6,9 @@ per-copy table (one request a minute, so every copy has ended before the next re
 fastest copy answers, or the on-device fallback when every chosen server refuses). Eq. 5 with
 Table I's δ and the request's τ scores it. The policies below are fitted on the even requests of
 every seed and scored on the odd ones. They are keyed on what SafeTail's state shows that moves
-latency most: the active users of each server.
+latency most: the active users of each server (``--key loads``). ``--key loads+input`` adds
+the input size's tercile, and ``loads+input+uplink`` adds the user's uplink tercile. A finer
+key sees more, but each key then has fewer requests to fit on.
 
 * ``expected reward``: for each load vector, the subset with the highest mean Eq. 5 reward.
   The original code's Q-style targets approach this (docs/deviations.md D17).
@@ -21,7 +23,7 @@ the share of requests sent the policy's most common subset, the range of its β-
 means (UC1's claim: every one in [1, 3] and not all equal) and the mean Eq. 5 reward. A load
 vector seen only among the odd requests gets the best fixed subset.
 
-    python benchmarks/eq5_policies.py [--seeds 1000,...,1009] [--steps 20000]
+    python benchmarks/eq5_policies.py [--seeds 1000,...,1009] [--steps 20000] [--key loads]
 
 About 5 s on 2 cores.
 """
@@ -85,7 +87,16 @@ def describe(actions: np.ndarray, rewards: np.ndarray, n_selected: np.ndarray, n
             f"reward={rewards.mean():.5f}")
 
 
-def measure(use_case_number: int, seeds: list[int], n_steps: int) -> dict[str, str]:
+#: What a policy may key on: each server's active users, then the request's input size and the
+#: user's uplink, each cut into terciles over all the requests measured.
+KEYS = ("loads", "loads+input", "loads+input+uplink")
+
+
+def _terciles(values: np.ndarray) -> np.ndarray:
+    return np.digitize(values, np.quantile(values, [1 / 3, 2 / 3]))
+
+
+def measure(use_case_number: int, seeds: list[int], n_steps: int, key: str = "loads") -> dict[str, str]:
     """Every policy's row for one use case, over ``seeds``' test worlds."""
     use_case = get_use_case(use_case_number)
     inputs = load_inputs(use_case)
@@ -95,15 +106,22 @@ def measure(use_case_number: int, seeds: list[int], n_steps: int) -> dict[str, s
     preset = get_preset("paper", use_case_number)
     members = membership_matrix(scenario.n_servers).astype(bool)
     n_selected = members.sum(axis=1)
-    rewards, loads = [], []
+    rewards, loads, input_bytes, uplink_bps = [], [], [], []
     for seed in seeds:
         world = build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
                             episode_steps=DEFAULT_EPISODE_STEPS, settings=settings)
         latency_s = subset_latencies_s(world, members)
         rewards.append(eq5_rewards(latency_s, world.target_s, n_selected, world.n_servers, preset.delta))
         loads.append(world.background_users)
+        input_bytes.append(world.input_bytes)
+        uplink_bps.append(world.user_uplink_bps)
     reward = np.concatenate(rewards)
-    _, keys = np.unique(np.concatenate(loads), axis=0, return_inverse=True)
+    features = [np.concatenate(loads)]
+    if key != "loads":
+        features.append(_terciles(np.concatenate(input_bytes))[:, None])
+    if key == "loads+input+uplink":
+        features.append(_terciles(np.concatenate(uplink_bps))[:, None])
+    _, keys = np.unique(np.hstack(features), axis=0, return_inverse=True)
     keys = keys.ravel()
     fit = np.zeros(len(reward), dtype=bool)
     fit[::2] = True
@@ -128,6 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", default=None,
                         help="world-calibration seeds, comma-separated (default: seed_sets.json's)")
     parser.add_argument("--steps", type=int, default=20000, help="requests per seed (default 20000)")
+    parser.add_argument("--key", choices=KEYS, default="loads",
+                        help="what a policy is keyed on (default loads: each server's active users)")
     args = parser.parse_args(argv)
     try:
         seeds = ([int(s) for s in args.seeds.split(",")] if args.seeds
@@ -137,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.steps < 2 * DEFAULT_EPISODE_STEPS:
         parser.error(f"--steps: expected at least {2 * DEFAULT_EPISODE_STEPS}, got {args.steps}")
     for use_case in (1, 2, 3):
-        for name, row in measure(use_case, seeds, args.steps).items():
+        for name, row in measure(use_case, seeds, args.steps, args.key).items():
             print(f"uc{use_case} {name:16s} {row}")
     return 0
 

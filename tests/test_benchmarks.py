@@ -153,7 +153,8 @@ def test_target_headroom_benchmark_small_budget():
 
 def test_eq5_policies_benchmark_small_budget():
     done = subprocess.run(
-        [sys.executable, str(REPOSITORY / "benchmarks" / "eq5_policies.py"), "--seeds", "1000", "--steps", "1000"],
+        [sys.executable, str(REPOSITORY / "benchmarks" / "eq5_policies.py"), "--seeds", "1000", "--steps", "1000",
+         "--key", "loads+input+uplink"],
         capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     rows = {tuple(line.split()[:2]): dict(part.split("=") for part in line.split()[2:])
@@ -165,9 +166,10 @@ def test_eq5_policies_benchmark_small_budget():
         assert all(float(row["reward"]) <= 0.0 and 1.0 <= float(row["servers"]) <= 5.0
                    for (uc, _), row in rows.items() if uc == use_case)
         assert rows[(use_case, "best_fixed")]["top_subset"] == "1.00"
-    bad = subprocess.run([sys.executable, str(REPOSITORY / "benchmarks" / "eq5_policies.py"), "--steps", "10"],
-                         capture_output=True, text=True, cwd=REPOSITORY, timeout=60)
-    assert bad.returncode == 2 and "--steps" in bad.stderr
+    for args, named in ((("--steps", "10"), "--steps"), (("--key", "speed"), "--key")):
+        bad = subprocess.run([sys.executable, str(REPOSITORY / "benchmarks" / "eq5_policies.py"), *args],
+                             capture_output=True, text=True, cwd=REPOSITORY, timeout=60)
+        assert bad.returncode == 2 and named in bad.stderr
 
 
 @pytest.mark.slow  # two TensorFlow processes; its network code is the runs' own, tested there
