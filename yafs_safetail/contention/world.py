@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from yafs_safetail.contention.compute_speed import ObservedLoadTarget, compute_speed_table
 from yafs_safetail.contention.config import (
     DEFAULT_BLOCK_REQUESTS,
     LINK_MODELS,
@@ -72,7 +73,9 @@ from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrid
 from yafs_safetail.settings.world_recipe import mobility_plan
 
 __all__ = [
-    "BACKGROUND_PERIOD_S", "ContentionWorld", "compute_speed_table",
+    "BACKGROUND_PERIOD_S", "ContentionWorld",
+    # From contention.compute_speed (importable from here, as before it moved).
+    "compute_speed_table",
     # From contention.config (importable from here, as before the split).
     "DEFAULT_BLOCK_REQUESTS", "LINK_MODELS", "ContentionConfig", "ContentionError",
     "check_contention_config", "read_arrivals", "user_conditions",
@@ -83,20 +86,6 @@ BACKGROUND_PERIOD_S = 60.0
 #: Outages are drawn up to the last emission plus this many time-outs: the requests' copies
 #: have settled by then (a copy still running later meets no new outage).
 FAILURE_HORIZON_TIMEOUTS = 10.0
-
-
-def compute_speed_table(median_compute_by_k_s: np.ndarray, speed_factor: float, max_jobs: int) -> tuple[float, ...]:
-    """Per-job speed for 0..max_jobs running jobs: T(1)/T(n) × the server's speed factor.
-
-    T(n) beyond the traced k grows in proportion to n (the server is then simply divided).
-    """
-    traced = np.asarray(median_compute_by_k_s, dtype=float)
-    k_max = traced.shape[0]
-    speeds = [speed_factor]  # n = 0 is never used for progress; any positive value will do
-    for n in range(1, max_jobs + 1):
-        time_n = traced[n - 1] if n <= k_max else traced[-1] * n / k_max
-        speeds.append(speed_factor * float(traced[0] / time_n))
-    return tuple(speeds)
 
 
 class ContentionWorld(OnWorldParts):
@@ -366,37 +355,17 @@ class ContentionWorld(OnWorldParts):
 
     def observed_load_target_s(self, request: int, active_users: Sequence[int]) -> float:
         """τ of request ``request`` with its compute term at the servers' observed load instead
-        of ν (the ``observed-load`` target, beyond the paper: docs/deviations.md D12).
-
-        Eq. 4 takes the median compute time at ν parallel instances, ν standing for how many
-        instances a server usually runs. Here that number is seen: with m the median over
-        servers of ℓ_i (our running and waiting copies and the background tenants), a new copy
-        is one of m + 1 jobs; up to the slots c (the servers' median capacity) they share the
-        CPU, so the compute term is C(s_j) × T(m + 1) / T(ν); beyond c, the copy also waits for
-        (m + 1 - c) / c rounds of T(c). T(k) is the traces' median compute time at k processes,
-        in proportion to k beyond the traced k, as the servers' speed tables take it. A fixed τ
-        of the settings (``target_latency_s``) stays fixed.
-        """
+        of ν (the ``observed-load`` target, beyond the paper: docs/deviations.md D12;
+        :class:`~yafs_safetail.contention.compute_speed.ObservedLoadTarget`). A fixed τ of the
+        settings (``target_latency_s``) stays fixed."""
         target_s = self.target_s(request)
         if self.settings.target_latency_s is not None:
             return target_s
         size = self.config.block_requests
         world = self.block_world(request // size)
-        slots, processes_s = self._typical_server_processes_s
-        # The median of the servers' ℓ_i without numpy (per request): the middle one, or the
-        # two middle ones' mean rounded down.
-        ordered = sorted(active_users)
-        half = len(ordered) // 2
-        jobs = (ordered[half] + ordered[~half]) // 2 + 1
-        effective_s = processes_s[min(jobs, slots)] * (1.0 + max(0, jobs - slots) / slots)
-        compute_s = float(world.target_compute_s[request % size])
-        return target_s - compute_s + compute_s * effective_s / processes_s[world.nu]
+        return self._observed_load_target.target_s(
+            target_s, float(world.target_compute_s[request % size]), world.nu, active_users)
 
     @cached_property
-    def _typical_server_processes_s(self) -> tuple[int, tuple[float, ...]]:
-        """The servers' median slots c and T(k) for k = 0..max(c, traced k) (T(0) unused), from
-        the same speed table the servers run at: T(k) = T(1) / speed(k)."""
-        slots = max(1, int(np.median(self.capacity)))
-        traced_s = self.inputs.median_compute_by_k_s
-        speeds = compute_speed_table(traced_s, 1.0, max(slots, len(traced_s)))
-        return slots, tuple(float(traced_s[0]) / speed for speed in speeds)
+    def _observed_load_target(self) -> ObservedLoadTarget:
+        return ObservedLoadTarget(self.capacity, self.inputs.median_compute_by_k_s)
