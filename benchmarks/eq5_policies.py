@@ -36,13 +36,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from yafs_safetail.edge.calibration import calibrated_settings, read_calibration, seed_set
-from yafs_safetail.edge.inputs import load_inputs, load_scenario_for
-from yafs_safetail.edge.scenario import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
-from yafs_safetail.edge.usecases import get_use_case
-from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld, build_world
-from yafs_safetail.methods.safetail.presets import get_preset
+from yafs_safetail.edge.calibration import seed_set
+from yafs_safetail.edge.world import DEFAULT_EPISODE_STEPS, EdgeWorld
 from yafs_safetail.methods.safetail.spaces import membership_matrix
+from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.settings.world_recipe import world_recipe
 
 
 def subset_latencies_s(world: EdgeWorld, members: np.ndarray) -> np.ndarray:
@@ -97,19 +95,16 @@ def _terciles(values: np.ndarray) -> np.ndarray:
 
 
 def measure(use_case_number: int, seeds: list[int], n_steps: int, key: str = "loads") -> dict[str, str]:
-    """Every policy's row for one use case, over ``seeds``' test worlds."""
-    use_case = get_use_case(use_case_number)
-    inputs = load_inputs(use_case)
-    scenario = load_scenario_for(inputs, DEFAULT_TOPOLOGY, DEFAULT_PLACEMENT)
-    shipped = read_calibration()
-    settings = calibrated_settings(shipped["parameters"], shipped["readings"])
-    preset = get_preset("paper", use_case_number)
-    members = membership_matrix(scenario.n_servers).astype(bool)
+    """Every policy's row for one use case, over ``seeds``' test worlds (the default run's world
+    and preset, ``n_steps`` requests each)."""
+    recipe = world_recipe(ExperimentConfig(use_case=use_case_number))
+    preset = recipe.learner
+    n_servers = recipe.parts.scenario.n_servers
+    members = membership_matrix(n_servers).astype(bool)
     n_selected = members.sum(axis=1)
     rewards, loads, input_bytes, uplink_bps = [], [], [], []
     for seed in seeds:
-        world = build_world(scenario, use_case, inputs, n_steps, seed=seed, phase="test",
-                            episode_steps=DEFAULT_EPISODE_STEPS, settings=settings)
+        world = recipe.parts.draw(n_steps, seed, "test", episode_steps=preset.episode_steps)
         latency_s = subset_latencies_s(world, members)
         rewards.append(eq5_rewards(latency_s, world.target_s, n_selected, world.n_servers, preset.delta))
         loads.append(world.background_users)
@@ -137,7 +132,7 @@ def measure(use_case_number: int, seeds: list[int], n_steps: int, key: str = "lo
     for name, choose in policies.items():
         actions = choose()
         earned = reward[held][np.arange(len(actions)), actions]
-        rows[name] = describe(actions, earned, n_selected, scenario.n_servers, preset.beta)
+        rows[name] = describe(actions, earned, n_selected, n_servers, preset.beta)
     return rows
 
 
