@@ -132,8 +132,10 @@ def test_bad_arguments_are_one_line_errors(tmp_path):
 
 
 def test_seed_sets_are_disjoint_and_bad_files_are_one_line(tmp_path):
+    # Every set that only reports: each must be new to what it reports on.
     held_out = [set(seed_set(name)) for name in ("held_out", "fresh_held_out", "refit_held_out",
-                                                 "uc3_scale_held_out")]
+                                                 "uc3_scale_held_out", "mobility_report",
+                                                 "target_held_out", "method_held_out")]
     assert sum(map(len, held_out)) == len(set().union(*held_out))  # no seed in two held-out sets
     assert not set().union(*held_out) & (set(seed_set("world_calibration"))
                                          | set(seed_set("learner_calibration")))

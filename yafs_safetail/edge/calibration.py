@@ -35,7 +35,8 @@ CALIBRATION_FILE = Path(__file__).with_name("calibration.json")
 #: Which seeds may choose anything and which only report (docs/calibration.md).
 SEED_SETS_FILE = Path(__file__).with_name("seed_sets.json")
 SEED_SETS = ("world_calibration", "learner_calibration", "held_out", "fresh_held_out", "refit_held_out",
-             "uc3_scale_held_out", "mobility_report", "target_held_out")
+             "uc3_scale_held_out", "mobility_report", "target_held_out",
+             "method_held_out")
 
 LOAD_STARTS = ("shared", "per_server")
 WORLD_NAMES = ("landed", "calibrated", "calibrated-v1")
