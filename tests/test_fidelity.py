@@ -91,3 +91,45 @@ def test_run_line_of_a_single_run():
     assert "held out" not in line  # use case 1 has no held-out ratio: not "0 of 0"
     other = results.speedup(summary(1.0), "SafeTail", "Rand-1", 50)
     assert math.isclose(other, 1.72)
+
+
+def any_summary(use_case: int) -> pd.DataFrame:
+    """A summary of ``use_case`` with every method its published ratios name, all equal."""
+    methods = {"SafeTail"} | {m for r in PAPER_RATIOS if r.use_case == use_case
+                              for m in (r.method, r.reference)}
+    return pd.DataFrame([
+        {"method": m, "p50_s": 1.0, "p90_s": 1.0, "p95_s": 1.0, "p99_s": 1.0,
+         "mean_target_s": 10.0, "mean_n_selected": 1.5, "median_n_selected": 1.0,
+         "min_n_selected": 1, "max_n_selected": 5, "min_window_n_selected": 1.2,
+         "max_window_n_selected": 2.0, "mean_access_rate": 0.3}
+        for m in sorted(methods)])
+
+
+#: The calibration side of every report: the sixteen UC1 numbers rule 1's world fit consumes.
+#: Calibration rule 6 put UC3's four on this side from 7a364ea; 3fa44db took rule 6's world back
+#: and UC3 with it, and rule 7 (1538a17) restates it (docs/calibration.md).
+CALIBRATION_KEYS = (
+    {(1, "Oracle over SafeTail median")}
+    | {(1, f"SafeTail over Oracle {p}") for p in ("p90", "p95", "p99")}
+    | {(1, f"SafeTail over {baseline} {p}") for baseline in ("Rand-1", "MinLoad-1", "MinProp-1")
+       for p in ("median", "p90", "p95", "p99")}
+)
+HELD_OUT_KEYS = {
+    (2, "SafeTail over Rand-3 median"), (2, "SafeTail over MinLoad-3 p90"),
+    (2, "SafeTail over MinProp-3 median"),
+    (3, "Oracle over SafeTail median"), (3, "Oracle over SafeTail p90"),
+    (3, "Oracle over SafeTail p95"), (3, "Oracle over SafeTail p99"),
+}
+
+
+def test_each_of_the_23_ratios_is_on_its_side_and_every_claim_is_held_out():
+    card = fidelity.scorecard({u: [any_summary(u)] for u in (1, 2, 3)})
+    ratios = card[card["kind"] == "ratio"]
+    side = {(int(r.use_case), r.key): r.subset for r in ratios.itertuples()}
+    assert len(side) == 23 and len(CALIBRATION_KEYS) == 16
+    assert {k for k, s in side.items() if s == "calibration"} == CALIBRATION_KEYS
+    assert {k for k, s in side.items() if s == "held-out"} == HELD_OUT_KEYS
+    others = card[card["kind"] != "ratio"]
+    assert len(others[others["kind"] == "claim"]) == 11 and set(others["use_case"]) == {1, 2, 3}
+    assert (others["subset"] == "held-out").all()  # UC3's claims too
+    assert fidelity.counts(card)["calibration"][1] == 16 and fidelity.counts(card)["held-out"][1] == 7

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from yafs_safetail.defaults import SAFETAIL
 
 #: The row of each SafeTail learner (``SweepConfig.learners``): the paper's §III learner is
-#: ``SafeTail``; the original code's Q-style targets (D17) are ``SafeTail-Q``; the value learner,
+#: ``SafeTail``; the original code's Q-style targets (D18) are ``SafeTail-Q``; the value learner,
 #: which prices its copies by the load they join, is ``SafeTail-CA`` (contention-aware, beyond
 #: the paper: docs/deviations.md D13).
 SAFETAIL_CA = "SafeTail-CA"

@@ -6,7 +6,9 @@ ours (a ratio: the geometric mean over seeds with a 95% t-interval on the log sc
 leaves (0, ∞); a claim: the share of seeds in which it holds), the relative error, whether it
 is within ±20%, and whether the number belongs to the calibration subset (the sixteen numbers
 whose combination ``experiments/calibrate.py`` fits the world to) or is held out. SafeTail's mean access rate per use case
-(the goal: at most 0.5) is reported beside them.
+(the goal: at most 0.5) is reported beside them. UC2's and UC3's ratios and every claim are held
+out: calibration rule 6 counted UC3's on the calibration side from 7a364ea, and 3fa44db undid
+that with rule 6's world (docs/calibration.md; ``tests/test_fidelity.py`` pins each ratio's side).
 
 Reads summaries only (``summary.csv`` of each run folder); never the simulator.
 """
