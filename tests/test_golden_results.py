@@ -41,7 +41,7 @@ GOLDEN_FILE = REPOSITORY / "tests" / "golden" / "results.json"
 UPDATE = os.environ.get("YAFS_SAFETAIL_UPDATE_GOLDEN") == "1"
 #: Keys of a JSON results file that name where or when it was made, not what it found.
 VOLATILE_KEYS = frozenset({"command", "load_runs", "campaign_run_id", "code_version", "created",
-                           "finished", "wall_s", "library_versions", "cpu"})
+                           "finished", "wall_s", "library_versions", "cpu", "numerics"})
 #: Files never compared: times and library versions.
 SKIPPED_NAMES = frozenset({"run.log", "campaign.log", "campaign.json", ".campaign.lock"})
 SKIPPED_SUFFIXES = frozenset({".png", ".pdf"})

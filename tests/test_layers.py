@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "yafs_safetail"
 
 #: Below the commands: none of these imports ``cli`` (only ``commands`` and ``cli`` itself do).
 NOT_CLI = ("settings", "yafs", "edge", "methods", "sim", "contention", "runs", "results",
-           "observation_space", "record", "defaults", "versions", "logs", "stopping")
+           "observation_space", "record", "defaults", "versions", "numerics", "logs", "stopping")
 #: Below ``runs``: none of these imports it.
 BELOW_RUNS = ("settings", "yafs", "edge", "methods", "sim", "contention", "results")
 

@@ -6,6 +6,9 @@ Importing the package makes the Gymnasium environments ``yafs_safetail/SafeTail-
 itself loads on ``gymnasium.make``). The package does not import Gymnasium itself: the command line answers
 ``--help`` and argument errors without loading NumPy or Gymnasium. The ids are registered as soon
 as Gymnasium's registry exists, whether it was imported before this package or after.
+
+Importing the package also pins TensorFlow's numerical path (``numerics``): the same seed gives
+the same files on every x86-64 processor.
 """
 
 from __future__ import annotations
@@ -16,6 +19,11 @@ import importlib.util
 import sys
 from types import ModuleType
 from typing import Any
+
+from yafs_safetail.numerics import pin_numerical_path
+
+# Before anything of the package can load TensorFlow: one numerical path on every x86-64.
+pin_numerical_path()
 
 __version__ = "0.1.0"
 

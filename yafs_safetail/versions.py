@@ -19,6 +19,7 @@ from importlib import metadata
 from pathlib import Path
 
 from yafs_safetail.defaults import LOCK_FILE
+from yafs_safetail.numerics import NUMERICS_KEY, numerical_path
 
 #: The distributions whose versions can change a results file: the simulation and the baselines
 #: (NumPy, SciPy, pandas, simpy, networkx) and SafeTail's network (TensorFlow, Keras, and
@@ -30,9 +31,9 @@ RESULT_PACKAGES: tuple[str, ...] = ("numpy", "scipy", "pandas", "simpy", "networ
 LIBRARY_VERSIONS_KEY = "library_versions"
 #: ``run.json`` key, only when some of those differ from the lock: name -> {installed, locked}.
 NOT_THE_LOCK_KEY = "library_versions_not_the_lock"
-#: ``run.json`` key: the processor, which matters too. TensorFlow's CPU kernels pick their code
-#: by the instruction set at run time, so SafeTail's network can differ between processors with
-#: the same libraries (docs/results.md, "Versions"); NumPy's draws, and so the baselines, do not.
+#: ``run.json`` key: the processor. TensorFlow's CPU kernels pick their code by the instruction
+#: set at run time; ``numerics`` pins one path for every x86-64 (recorded as ``numerics``), so
+#: the processor is recorded to show which one made a run, not because the files depend on it.
 CPU_KEY = "cpu"
 #: The instruction-set extensions whose presence changes which kernels TensorFlow (oneDNN) runs.
 CPU_FLAGS = ("avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "avx_vnni", "amx_tile")
@@ -95,11 +96,11 @@ def cpu_fields(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict[str, object]:
 
 def run_json_fields(lock_file: Path = LOCK_FILE) -> dict[str, object]:
     """What ``run.json`` records of the libraries and the processor: the versions, those not
-    the lock's, and the CPU."""
+    the lock's, the CPU and the network's numerical path."""
     installed = installed_versions()
     differ = differences_from_lock(installed, locked_versions(lock_file))
     return {LIBRARY_VERSIONS_KEY: installed, **({NOT_THE_LOCK_KEY: differ} if differ else {}),
-            CPU_KEY: cpu_fields()}
+            CPU_KEY: cpu_fields(), NUMERICS_KEY: numerical_path()}
 
 
 def not_the_lock_note(differ: dict[str, dict[str, str | None]]) -> str:

@@ -146,7 +146,7 @@ class ContentionSweep:
     objectives: tuple[str, ...] = setting(
         DEFAULT_SWEEP_OBJECTIVES, "the SafeTails to train by their learners' objectives, comma-separated "
         "(default target-vector,value): target-vector (the paper's §III learner, row SafeTail), q-target "
-        "(the original code's Q-style targets, row SafeTail-Q, deviation D17) and value (the same network "
+        "(the original code's Q-style targets, row SafeTail-Q, deviation D18) and value (the same network "
         "predicting each action's latency, its copies priced at dispatch: row SafeTail-CA, deviation D13 in "
         "the documentation)", check=LEARNERS, deprecated=("--learner",))
     dispatch: str | None = setting(

@@ -11,6 +11,7 @@ from pathlib import Path
 import pandas as pd
 
 from yafs_safetail.methods.registry import ORACLE, SAFETAIL
+from yafs_safetail.numerics import NUMERICS_KEY, not_pinned_note
 from yafs_safetail.results.claims import check_claims
 from yafs_safetail.results.files import (
     MIN_REQUESTS_BEYOND_PERCENTILE,
@@ -141,6 +142,9 @@ def _heading_lines(summary: pd.DataFrame, run: RunMetadata | None, differences: 
     lines = [title, ""]
     if run is not None and (differ := run.extra.get(NOT_THE_LOCK_KEY)):
         lines += [not_the_lock_note(differ), ""]
+    numerics = run.extra.get(NUMERICS_KEY) if run is not None else None
+    if isinstance(numerics, dict) and not numerics.get("pinned", True):
+        lines += [not_pinned_note(numerics), ""]
     lines += _thin_lines(summary)
     if differences:
         lines += [

@@ -218,9 +218,8 @@ class LearnerOverrides:
         "did not end with a reply (default 0; deviation D15 in the documentation)",
         check=NON_NEGATIVE_NUMBER, optional=True)
     objective: str | None = setting(
-        None, "what SafeTail's network is trained toward: q-target (the original code's Q-style "
-        "targets; the paper preset's default, deviation D17), target-vector (the paper's §III text; "
-        "paper-literal's and tuned's default) or, beyond the paper, value (the network regresses each "
+        None, "what SafeTail's network is trained toward: target-vector (the paper's §III text; every "
+        "preset's default), q-target (the original code's Q-style targets, deviation D18) or, beyond the paper, value (the network regresses each "
         "action's latency score, less the D15 prices when set, and copies to busy servers are priced "
         "at dispatch: the contention world's SafeTail-CA learner; deviations D13, D15 in the "
         "documentation)", check=one_of(OBJECTIVES),

@@ -4,7 +4,7 @@ and training rounds on them.
 Three objectives (``LearnerConfig.objective``):
 
 * ``"target-vector"``: §III's target vector, fitted by the softmax's cross-entropy;
-* ``"q-target"``: the original code's targets (facts.md; docs/deviations.md D17): the network's
+* ``"q-target"``: the original code's targets (facts.md; docs/deviations.md D18): the network's
   own outputs for the state, the taken action's entry replaced by R + 0.95 · max of its outputs
   for the next request's state, with the same softmax and cross-entropy;
 * ``"value"`` (beyond the paper, D13): the same network (or the mean of ``n_networks`` of them)

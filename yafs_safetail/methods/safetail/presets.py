@@ -54,10 +54,10 @@ PAPER_BATCH_SIZE = 32
 Q_TARGET_DISCOUNT = 0.95
 #: paper: Adam's learning rate per use case, chosen by docs/calibration.md's rule 3 (the rate of a
 #: log grid whose greedy policy earns the highest mean Eq. 5 test reward on the learner-calibration
-#: seeds; ``python experiments/choose_learning_rate.py``, rerun 2026-11-27 in the refitted world of
-#: rule 5 with rule 7's q-target objective). Table I's rates cannot move the network within 50·β
-#: steps (docs/deviations.md D6); these replace them, whatever the budget.
-PAPER_LEARNING_RATES = {1: 3e-3, 2: 3e-3, 3: 3e-5}
+#: seeds; ``python experiments/choose_learning_rate.py``, rerun 2026-11-28 with §III's target
+#: vector on the pinned numerical path, issue 48). Table I's rates cannot move the network within
+#: 50·β steps (docs/deviations.md D6); these replace them, whatever the budget.
+PAPER_LEARNING_RATES = {1: 3e-4, 2: 1e-3, 3: 1e-5}
 
 REPLAY_SAMPLING = ("recent", "uniform")
 
@@ -91,9 +91,9 @@ class LearnerConfig:
             the stored tuples; ``"uniform"``: a round makes ``updates_per_round`` Adam updates,
             each on ``batch_size`` tuples drawn at random (without replacement) from the memory.
         updates_per_round: Adam updates per round for ``replay_sampling="uniform"``.
-        objective: one of :data:`OBJECTIVES`: ``paper`` uses ``"q-target"`` (the original code's
-            targets, docs/calibration.md rule 7), ``paper-literal`` and ``tuned`` §III's
-            ``"target-vector"``.
+        objective: one of :data:`OBJECTIVES`: every preset trains on §III's ``"target-vector"``
+            (the paper's text specifies the method: the spec owner's decision of 2026-11-28);
+            ``"q-target"`` is the original code's targets (D18), by name only.
         n_networks: With the ``"value"`` objective, how many networks (same layers, their own
             initial weights, trained on the same minibatches) predict each action's value;
             decisions use the mean of their predictions, meant to vary less from seed to seed
@@ -235,7 +235,8 @@ def get_preset(name: str, use_case: int, *, train_steps: int | None = None) -> L
       64 Adam updates on 32 tuples drawn from it; ε decays per step and reaches ε_min at the
       end of training, as in the original runs; the learning rate is
       :data:`PAPER_LEARNING_RATES`'s, chosen by a rule on calibration seeds (docs/calibration.md);
-      it trains on the original code's Q-style targets (``"q-target"``, rule 7; D17).
+      it trains on §III's target vector (the original code's Q-style targets, D18, only when
+      asked: ``--objective q-target``).
     * ``tuned``: learning rate 1e-3; ε decays linearly to ε_min within the first half of the
       training rounds the step budget allows; each round trains 2 epochs (batch 64) on the
       most recent 2048 tuples. Everything else as ``paper-literal``.
@@ -289,7 +290,6 @@ def get_preset(name: str, use_case: int, *, train_steps: int | None = None) -> L
             replay_sampling="uniform",
             updates_per_round=PAPER_UPDATES_PER_ROUND,
             batch_size=PAPER_BATCH_SIZE,
-            objective="q-target",
         )
     rounds_to_min = max(1, math.floor(TUNED_EXPLORATION_FRACTION * literal.n_training_rounds))
     return dataclasses.replace(
