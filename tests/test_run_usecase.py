@@ -402,17 +402,17 @@ def uc1_default_run(tmp_path_factory) -> Path:
 def test_learning_rate_option_trains_safetail_at_that_rate_and_says_so(tmp_path, uc1_default_run):
     out = tmp_path / "faster"
     done = run_here("--uc", "1", "--out", out, "--quiet", "--no-figures", *TINY,
-                      "--learning-rate", "0.0003")
+                      "--learning-rate", "0.003")
     assert done.returncode == 0, done.stderr
     run = json.loads((out / "run.json").read_text())
-    assert run["learning_rate_override"] == 0.0003 and run["learner"]["learning_rate"] == 0.0003
+    assert run["learning_rate_override"] == 0.003 and run["learner"]["learning_rate"] == 0.003
     assert run["preset"] == "paper"
     title = (out / "summary.md").read_text().splitlines()[0]
-    assert "preset `paper`, learning rate 0.0003 (--learning-rate), seed 0" in title
+    assert "preset `paper`, learning rate 0.003 (--learning-rate), seed 0" in title
     default = uc1_default_run
     preset_run = json.loads((default / "run.json").read_text())
     assert "learning_rate_override" not in preset_run
-    assert preset_run["learner"]["learning_rate"] != 0.0003
+    assert preset_run["learner"]["learning_rate"] != 0.003
     assert "learning rate" not in (default / "summary.md").read_text().splitlines()[0]
     # Only SafeTail's training changes: the baselines meet the same requests with the same replies.
     faster, preset = pd.read_csv(out / "requests.csv"), pd.read_csv(default / "requests.csv")

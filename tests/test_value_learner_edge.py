@@ -85,11 +85,11 @@ def test_the_value_network_regresses_the_priced_score_of_hand_made_records():
 
 def test_the_learner_option_sets_the_objective_and_its_networks():
     _, default = learner_config(ExperimentConfig())
-    # paper's default is the original code's targets (docs/calibration.md rule 7).
-    assert (default.objective, default.n_networks) == ("q-target", 1)
+    # paper's default is §III's target vector (the spec owner's decision of 2026-11-28).
+    assert (default.objective, default.n_networks) == ("target-vector", 1)
     _, value = learner_config(ExperimentConfig(objective="value", n_networks=2, energy_price_per_j=0.01))
     assert (value.objective, value.n_networks, value.energy_price_per_j) == ("value", 2, 0.01)
-    assert dataclasses.replace(value, objective="q-target", n_networks=1, energy_price_per_j=0.0) == default
+    assert dataclasses.replace(value, objective="target-vector", n_networks=1, energy_price_per_j=0.0) == default
 
 
 def _run_usecase(*args: str, out: Path) -> subprocess.CompletedProcess[str]:
