@@ -100,6 +100,18 @@ def _claim_holds(key: str, summary: pd.DataFrame) -> bool | None:
     raise KeyError(f"no check for paper claim {key!r}")
 
 
+def claim_holds(key: str, summary: pd.DataFrame) -> bool | None:
+    """Whether the paper's claim ``key`` holds in a summary (one row per method, SafeTail's
+    among them; the columns the claim reads): True, False, or None when it cannot be checked
+    (a needed method is absent). ``runs.method_optimum`` reads a learner-free policy's
+    decisions through it, in SafeTail's row.
+
+    Raises:
+        KeyError: no check for ``key``.
+    """
+    return _claim_holds(key, summary)
+
+
 def check_claims(summary: pd.DataFrame, use_case: int) -> pd.DataFrame:
     """The paper's qualitative statements for ``use_case`` and whether this run bears them out.
 
