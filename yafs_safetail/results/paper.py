@@ -160,7 +160,8 @@ PAPER_CLAIMS: tuple[PaperClaim, ...] = (
 #: The methods whose ratios with SafeTail in use case 1 form the calibration subset: the
 #: sixteen numbers whose combination (each x = 1 baseline's latency over Oracle's)
 #: ``experiments/calibrate.py`` fits the unpublished world parameters to (docs/calibration.md).
-#: Every other stated number is held out (never used to choose or fit anything).
+#: Every other stated number is held out: no fit consumes it. (Once one did: rule 6 chose
+#: UC3's compute scale from UC3's bounds at 7a364ea, taken back at 3fa44db; docs/calibration.md.)
 CALIBRATION_REFERENCES: tuple[str, ...] = ("Rand-1", "MinLoad-1", "MinProp-1", ORACLE)
 
 
