@@ -46,6 +46,28 @@ def test_ratios_and_intervals(two_runs):
     assert table.equals(compare_runs(a, b, seed=0))  # seeded: the same table every time
 
 
+def test_a_run_against_itself_is_one_with_a_zero_width_interval(two_runs):
+    a, _ = two_runs
+    table = compare_runs(a, a, seed=0)
+    assert table["paired"].all()
+    assert (table["ratio_b_over_a"] == 1.0).all()
+    assert (table["ratio_low"] == 1.0).all() and (table["ratio_high"] == 1.0).all()
+
+
+def test_the_same_requests_are_paired_and_other_seeds_are_not(two_runs, tmp_path):
+    a, b = two_runs
+    # B's Oracle took exactly twice as long on every request: paired, every resample says 2.
+    oracle = compare_runs(a, b, seed=0).query("method == 'Oracle' and figure == 'p99_s'").iloc[0]
+    assert oracle["paired"] and oracle["ratio_low"] == pytest.approx(2.0) == oracle["ratio_high"]
+    # Another seed's requests are other requests: each run resampled on its own, a wider interval.
+    other = tmp_path / "other_seed"
+    write_run_folder(other, np.random.default_rng(1), seed=1)
+    write_requests_csv(pd.read_csv(b / "requests.csv"), other)
+    unpaired = compare_runs(a, other, seed=0).query("method == 'Oracle' and figure == 'p99_s'").iloc[0]
+    assert not unpaired["paired"] and unpaired["ratio_b_over_a"] == pytest.approx(2.0)
+    assert unpaired["ratio_low"] < 2.0 < unpaired["ratio_high"]
+
+
 def test_command_writes_a_new_folder_and_refuses_bad_input(two_runs, tmp_path):
     a, b = two_runs
     out = tmp_path / "cmp"

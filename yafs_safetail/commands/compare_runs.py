@@ -1,5 +1,6 @@
 """Compare two results folders: each method's test-phase p50/p90/p95/p99 and servers per request
-in run A and run B, the ratio B / A and its 95% bootstrap interval.
+in run A and run B, the ratio B / A and its 95% bootstrap interval: paired when both runs met
+the same test requests (the same seed and world), each run resampled on its own otherwise.
 
     yafs-safetail compare RUN_A RUN_B [--out DIR] [--seed 0]
 

@@ -1,5 +1,11 @@
 """Two results folders side by side: every method's test-phase percentiles in each, and the
-ratio B / A with a bootstrap 95% interval (``yafs-safetail compare RUN_A RUN_B``)."""
+ratio B / A with a bootstrap 95% interval (``yafs-safetail compare RUN_A RUN_B``).
+
+Two runs of one world and seed meet the same test requests (common random numbers): their
+intervals are then paired, each resample drawing the same requests from both runs, so the
+interval measures the methods' difference, not the requests' spread. A run against itself gives
+1 with a zero-width interval. Otherwise each run is resampled on its own.
+"""
 
 from __future__ import annotations
 
@@ -22,7 +28,8 @@ COMPARED: tuple[tuple[str, float | None], ...] = (
 )
 #: Bootstrap resamples per interval.
 BOOTSTRAP_RESAMPLES = 1000
-COMPARE_COLUMNS = ("method", "figure", "run_a", "run_b", "ratio_b_over_a", "ratio_low", "ratio_high")
+COMPARE_COLUMNS = ("method", "figure", "run_a", "run_b", "ratio_b_over_a", "ratio_low", "ratio_high",
+                   "paired")
 
 
 #: The ``run.json`` keys that say which world a run's requests met: two runs differing in one of
@@ -89,22 +96,39 @@ def _figure(values: np.ndarray, percentile: float | None) -> np.ndarray:
 
 
 def _bootstrap_ratio(a: np.ndarray, b: np.ndarray, percentile: float | None,
-                     rng: np.random.Generator) -> tuple[float, float]:
-    """A 95% percentile-bootstrap interval of figure(B) / figure(A), each run resampled on its
-    own (the requests of two runs are not paired). Always within the ratios' feasible range."""
+                     rng: np.random.Generator, paired: bool = False) -> tuple[float, float]:
+    """A 95% percentile-bootstrap interval of figure(B) / figure(A). Paired (``a[i]`` and
+    ``b[i]`` the same request): each resample takes the same requests from both. Unpaired: each
+    run resampled on its own. Always within the ratios' feasible range."""
     ratios = np.empty(BOOTSTRAP_RESAMPLES)
     chunk = 100  # resamples drawn at once: bounded memory for long runs
     for start in range(0, BOOTSTRAP_RESAMPLES, chunk):
         size = min(chunk, BOOTSTRAP_RESAMPLES - start)
-        fa = _figure(a[rng.integers(a.size, size=(size, a.size))], percentile)
-        fb = _figure(b[rng.integers(b.size, size=(size, b.size))], percentile)
-        ratios[start:start + size] = fb / fa
+        picks_a = rng.integers(a.size, size=(size, a.size))
+        picks_b = picks_a if paired else rng.integers(b.size, size=(size, b.size))
+        ratios[start:start + size] = _figure(b[picks_b], percentile) / _figure(a[picks_a], percentile)
     low, high = np.percentile(ratios, [2.5, 97.5])
     return float(low), float(high)
 
 
+def same_requests(run_a: Path, run_b: Path) -> bool:
+    """Whether two runs' test phases met the same requests: the same seed and world in both
+    ``run.json`` files (common random numbers). False when either cannot be read."""
+    try:
+        seeds = [read_run_json(run).seed for run in (run_a, run_b)]
+        return seeds[0] == seeds[1] and not world_differences(run_a, run_b)
+    except ResultsFileError:
+        return False
+
+
+def _by_request(rows: pd.DataFrame) -> pd.DataFrame:
+    return rows.sort_values("request_id", kind="stable")
+
+
 def compare_runs(run_a: Path, run_b: Path, seed: int = 0) -> pd.DataFrame:
-    """One row per (method in both runs, figure): A's value, B's, B / A and its interval.
+    """One row per (method in both runs, figure): A's value, B's, B / A and its interval, and
+    whether the interval is paired (:func:`same_requests`, and the method's test phase holds the
+    same request ids in both runs).
 
     Raises:
         ResultsFileError: a folder without a readable ``requests.csv``, or no method in common.
@@ -114,20 +138,27 @@ def compare_runs(run_a: Path, run_b: Path, seed: int = 0) -> pd.DataFrame:
     common = sort_methods(set(tests[0]["method"]) & set(tests[1]["method"]))
     if not common:
         raise ResultsFileError(f"{run_a} and {run_b}: no method in common in their test phases")
+    one_world = same_requests(run_a, run_b)
     rng = np.random.default_rng(seed)
     rows = []
     for method in common:
-        columns = []
-        for test in tests:
-            rows_of = test[test["method"] == method]
-            columns.append((rows_of["latency_s"].to_numpy(float), rows_of["n_selected"].to_numpy(float)))
+        of_a, of_b = (test[test["method"] == method] for test in tests)
+        paired = False
+        if one_world:
+            sorted_a, sorted_b = _by_request(of_a), _by_request(of_b)
+            ids = sorted_a["request_id"].to_numpy()
+            paired = (np.array_equal(ids, sorted_b["request_id"].to_numpy())
+                      and len(np.unique(ids)) == len(ids))
+            if paired:  # row i of both is the same request
+                of_a, of_b = sorted_a, sorted_b
         for name, percentile in COMPARED:
-            index = 1 if percentile is None else 0
-            a, b = columns[0][index], columns[1][index]
+            column = "n_selected" if percentile is None else "latency_s"
+            a, b = of_a[column].to_numpy(float), of_b[column].to_numpy(float)
             value_a, value_b = float(_figure(a, percentile)), float(_figure(b, percentile))
             ratio = value_b / value_a if value_a > 0 else math.nan
-            low, high = _bootstrap_ratio(a, b, percentile, rng) if value_a > 0 else (math.nan, math.nan)
-            rows.append((method, name, value_a, value_b, ratio, low, high))
+            low, high = (_bootstrap_ratio(a, b, percentile, rng, paired) if value_a > 0
+                         else (math.nan, math.nan))
+            rows.append((method, name, value_a, value_b, ratio, low, high, paired))
     return pd.DataFrame(rows, columns=list(COMPARE_COLUMNS))
 
 
@@ -161,7 +192,8 @@ def comparison_figure(table: pd.DataFrame, label_a: str, label_b: str) -> Any:
     axis.axhline(1.0, color="black", linewidth=0.8)
     axis.set_xticks(np.arange(len(methods)), methods, rotation=30, ha="right")
     axis.set_ylabel("B / A  (1 = no difference)")
-    fig.suptitle("test phase: run B over run A, 95% bootstrap intervals")
+    paired = "paired " if bool(table["paired"].all()) else ""
+    fig.suptitle(f"test phase: run B over run A, 95% {paired}bootstrap intervals")
     # Between the title and the bars, where it hides none of them.
     axis.legend(fontsize=7, ncol=len(figures), loc="lower center", bbox_to_anchor=(0.5, 1.0),
                 frameon=False)
