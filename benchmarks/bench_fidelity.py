@@ -25,7 +25,7 @@ one line each, and the verdict:
 
 then what the method's own training target can reach (issue 48, decision 2: the learner-free
 "most zeros" policy of ``yafs_safetail.runs.method_optimum`` on the same test requests; also
-``benchmarks/learner_vs_optimum.py``):
+``investigations/learner_vs_optimum.py``):
 
     uc1_tails_below_x123_seeds=<k>/<n>    goal: every seed (p90, p95, p99 below every x = 1, 2
                                           and 3 baseline's)
@@ -40,7 +40,7 @@ then what the method's own training target can reach (issue 48, decision 2: the 
 ``goals_met`` adds ``uc1_tails_x123``, ``access_vs_method`` and ``zero_share`` after the earlier
 six. ``--from OUT`` recomputes all of it from an earlier ``--out`` folder without running
 anything (seeds: the folder's, unless ``--seeds``); ``--write FILE`` also writes the scorecard
-as JSON (``docs/scorecard.json``, which ``benchmarks/readme_tables.py`` renders into the
+as JSON (``docs/scorecard.json``, which ``tables/readme_tables.py`` renders into the
 README): the seeds, preset, commit, and every goal's measured value and verdict.
 
 Usage::
@@ -332,7 +332,7 @@ def assemble(card: Any, top: Any, worlds: Sequence[Any], comparisons: Mapping[in
     }
     return {
         "about": ("The fidelity scorecard, written by benchmarks/bench_fidelity.py --write and "
-                  "rendered into README.md by benchmarks/readme_tables.py; rewrite it with the "
+                  "rendered into README.md by tables/readme_tables.py; rewrite it with the "
                   "command below, never by hand."),
         **about, "access_rate": {str(k): v for k, v in sorted(access.items())},
         "use_cases": use_cases, "goals": goals,

@@ -14,7 +14,7 @@ the grid's per-server-start candidates under two readings of a link's condition:
 
 Nothing here changes a run; it answers whether the reading is worth a rule.
 
-    python benchmarks/bench_condition_by_load.py [--seeds 1000,1001,1002] [--top 3]
+    python investigations/bench_condition_by_load.py [--seeds 1000,1001,1002] [--top 3]
 
 About two minutes on 2 cores.
 """

@@ -1,6 +1,6 @@
 """How far apart two equally good methods' p99 land in one load sweep (run on demand).
 
-    python benchmarks/bench_sweep_noise.py [--loads 0.5,0.7,0.9] [--seeds 0,1,2,3,4,5] [--requests 20000]
+    python investigations/bench_sweep_noise.py [--loads 0.5,0.7,0.9] [--seeds 0,1,2,3,4,5] [--requests 20000]
 
 The load sweep's goal compares SafeTail's p99 with the best fixed method's within 5%. This
 prints what that margin is made of when nothing differs but chance: Tied against the same tied

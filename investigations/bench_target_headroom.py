@@ -13,7 +13,7 @@ seeds' test worlds, and the share of Oracle's median latency that is compute. If
 use case reaches its bound, no fit of these two parameters can make that use case's statements
 hold together, whatever the learner does.
 
-    python benchmarks/bench_target_headroom.py [--seeds 1000,1001,1002] [--steps 2000]
+    python investigations/bench_target_headroom.py [--seeds 1000,1001,1002] [--steps 2000]
 
 About a minute on 2 cores.
 """

@@ -11,7 +11,7 @@ the input size's tercile, ``loads+input+uplink`` the user's uplink tercile and
 ``loads+input+uplink+downlink`` the downlink's. A finer key sees more, but each key then has
 fewer requests to fit on. The rewards and the per-key fit are ``yafs_safetail.runs.method_optimum``'s,
 which also measures the ``most zeros`` policy on a run's own test requests
-(``benchmarks/learner_vs_optimum.py``).
+(``investigations/learner_vs_optimum.py``).
 
 * ``expected reward``: for each load vector, the subset with the highest mean Eq. 5 reward.
   The original code's Q-style targets approach this (docs/deviations.md D18).
@@ -26,7 +26,7 @@ the share of requests sent the policy's most common subset, the range of its β-
 means (UC1's claim: every one in [1, 3] and not all equal) and the mean Eq. 5 reward. A load
 vector seen only among the odd requests gets the best fixed subset.
 
-    python benchmarks/eq5_policies.py [--seeds 1000,...,1009] [--steps 20000] [--key loads]
+    python investigations/eq5_policies.py [--seeds 1000,...,1009] [--steps 20000] [--key loads]
 
 About 5 s on 2 cores.
 """

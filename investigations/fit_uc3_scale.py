@@ -10,7 +10,7 @@ s₃ meeting τ/Oracle ≥ 1.50 at p50 and ≥ 1.14 at p90 (the paper's UC3 numb
 the answer; if none does, rule 5's world and s₃ = 4.17 s stay. Nothing is installed.
 
     python experiments/calibrate.py --out results/calibration      # the evaluations, first
-    python benchmarks/fit_uc3_scale.py [--evaluations results/calibration/evaluations.csv]
+    python investigations/fit_uc3_scale.py [--evaluations results/calibration/evaluations.csv]
         [--out results/uc3-scale] [--steps 4000]
 
 Writes every (point, s₃) visited to ``OUT/scan.csv`` and prints the answer; ``--apply`` installs
@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from bench_target_headroom import target_over_oracle  # beside this script (run from benchmarks/)
+from bench_target_headroom import target_over_oracle  # beside this script (investigations/)
 
 import yafs_safetail
 from yafs_safetail.edge.calibration import (
@@ -149,7 +149,7 @@ def _install(point: dict[str, Any], scale_s: float, p50: float, p90: float,
             "uc3_mean_latency_s": scale_s,
             "uc3_tau_over_oracle": {"p50": round(p50, 4), "p90": round(p90, 4)},
             "date": datetime.date.today().isoformat(),
-            "command": shlex.join(["python", "benchmarks/fit_uc3_scale.py", *sys.argv[1:]]),
+            "command": shlex.join(["python", "investigations/fit_uc3_scale.py", *sys.argv[1:]]),
             "package_version": yafs_safetail.__version__,
             "git_commit": subprocess.run(["git", "-C", str(REPOSITORY), "rev-parse", "HEAD"],
                                          capture_output=True, text=True).stdout.strip() or None,

@@ -8,9 +8,9 @@ prints, per use case, SafeTail's share of zero rewards and access rate (mean ove
 the policy's on the very same test requests, the gaps, and the goals: SafeTail's share
 of zeros no more than 0.05 below the policy's, its access rate no more than 0.05 above it.
 
-    python benchmarks/learner_vs_optimum.py --runs OUT [--preset paper]
-    python benchmarks/learner_vs_optimum.py --seeds 0,1,2 --uc 1,2,3 [--preset paper] [--steps-scale 1]
-    python benchmarks/learner_vs_optimum.py --keys [--uc 1,2,3]
+    python investigations/learner_vs_optimum.py --runs OUT [--preset paper]
+    python investigations/learner_vs_optimum.py --seeds 0,1,2 --uc 1,2,3 [--preset paper] [--steps-scale 1]
+    python investigations/learner_vs_optimum.py --keys [--uc 1,2,3]
 
 ``--runs OUT``: a ``reproduce_all.py`` or ``bench_fidelity.py --out`` folder
 (``OUT/uc<N>-<preset>/seed<S>/``); every run's test world is redrawn from its ``run.json`` and

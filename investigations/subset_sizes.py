@@ -2,7 +2,7 @@
 each subset size in the test phase and the mean over each β test requests (Fig. (e)'s points,
 which the paper's "1 to 3 servers" claims read).
 
-    python benchmarks/subset_sizes.py OUT [--method SafeTail]
+    python investigations/subset_sizes.py OUT [--method SafeTail]
 
 OUT is a ``reproduce_all.py`` (or ``bench_fidelity.py``) folder: every ``uc<N>-<preset>/seed<S>/``
 in it is read. Seconds.

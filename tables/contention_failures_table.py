@@ -1,7 +1,7 @@
 """The contention world with failing servers: success rate, p99 and energy per request of a few
 methods at a few failure probabilities (docs/contention.md, "Failures and energy").
 
-    python benchmarks/contention_failures_table.py [--requests N] [--seed S] [--load L]
+    python tables/contention_failures_table.py [--requests N] [--seed S] [--load L]
         [--probabilities 0,0.1] [--methods A,B] [--no-background] [--mttr-s S]
 
 Prints a markdown table; every figure in that docs section comes from it.

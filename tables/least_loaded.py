@@ -7,7 +7,7 @@ SafeTail sees) and prints, per use case, the mean over seeds of SafeTail's serve
 median and p99 beside MinLoad-1's, MinLoad-2's and MinLoad-3's, and in how many seeds each is
 faster than SafeTail. The README's "Against the strongest simple policy" is this table.
 
-    python benchmarks/least_loaded.py [--seeds 7400,7401,7402,7403,7404] [--out DIR]
+    python tables/least_loaded.py [--seeds 7400,7401,7402,7403,7404] [--out DIR]
 
 About 5 minutes on 2 cores at the full budget; run folders already in ``--out`` are read, not
 rerun.

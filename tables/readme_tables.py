@@ -8,16 +8,16 @@ Each table sits in README.md between ``<!-- readme_tables: NAME -->`` and
     scorecard   the committed ``docs/scorecard.json`` (``python benchmarks/bench_fidelity.py
                 --seeds 7400,...,7404 --out OUT``, then ``--from OUT --write docs/scorecard.json``:
                 seed_sets.json's method_held_out); reads the file, runs nothing
-    least-loaded  ``python benchmarks/least_loaded.py``: SafeTail beside the least-loaded servers
+    least-loaded  ``python tables/least_loaded.py``: SafeTail beside the least-loaded servers
                 of all five on seeds 7400-7404; about 5 minutes
     timing      ``python benchmarks/bench_first_answer.py --runs 3``; about 2 minutes, and noisy:
                 written, never checked
 
 Usage::
 
-    python benchmarks/readme_tables.py --check                   # the first-run table (CI does)
-    python benchmarks/readme_tables.py --check --only first-run,scorecard
-    python benchmarks/readme_tables.py --write --only first-run,scorecard,timing
+    python tables/readme_tables.py --check                   # the first-run table (CI does)
+    python tables/readme_tables.py --check --only first-run,scorecard
+    python tables/readme_tables.py --write --only first-run,scorecard,timing
 
 ``--check`` exits 1 and names every table that differs from a fresh run (the scorecard: from
 the committed file); ``--write`` replaces the tables in README.md. The figures need the lock's library versions (``constraints.txt``):
@@ -206,7 +206,7 @@ def scorecard_block(card: Mapping[str, Any]) -> str:
                    "server that answers in time, or to all five when none would; “the best that "
                    "target allows” is a policy without a learner that sends each request where "
                    "that reward came most often in other seeds' worlds, measured on the same "
-                   "requests (`python benchmarks/learner_vs_optimum.py`).")]
+                   "requests (`python investigations/learner_vs_optimum.py`).")]
     return "\n".join(lines) + "\n"
 
 
@@ -256,10 +256,10 @@ def _timing() -> str:
 
 def _least_loaded() -> str:
     with tempfile.TemporaryDirectory(prefix="readme_tables_") as scratch:
-        done = subprocess.run([sys.executable, "benchmarks/least_loaded.py", "--out", scratch],
+        done = subprocess.run([sys.executable, "tables/least_loaded.py", "--out", scratch],
                               cwd=REPOSITORY, stdout=subprocess.PIPE, text=True, check=False)
     if done.returncode:
-        raise SystemExit(f"benchmarks/least_loaded.py failed (exit {done.returncode})")
+        raise SystemExit(f"tables/least_loaded.py failed (exit {done.returncode})")
     return done.stdout
 
 

@@ -110,7 +110,8 @@ def test_scripts_run_directly_keep_their_own_name(capsys: pytest.CaptureFixture[
     assert bare.returncode == EXIT_BAD_INPUT and bare.stdout == "" and "Traceback" not in bare.stderr
 
 
-ENTRY_POINTS = sorted(str(path.relative_to(REPOSITORY)) for folder in ("experiments", "benchmarks")
+ENTRY_POINTS = sorted(str(path.relative_to(REPOSITORY))
+                      for folder in ("experiments", "benchmarks", "investigations", "tables")
                       for path in (REPOSITORY / folder).glob("*.py"))
 #: What a user cannot look up: an issue number of the project's tracker, or a file that is
 #: not in the project.

@@ -1,6 +1,6 @@
 """The method's own optimum (issue 48): the "most zeros" policy, fitted learner-free, measured on
 the very requests a run's test phase sees, beside SafeTail's figures from the run's folder; and
-``benchmarks/learner_vs_optimum.py``, which prints the comparison."""
+``investigations/learner_vs_optimum.py``, which prints the comparison."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ FIT = {"fit_seeds": [1000], "fit_steps": 512}
 
 
 def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "benchmarks" / f"{name}.py")
+    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "investigations" / f"{name}.py")
     assert spec and spec.loader
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -195,7 +195,7 @@ def test_the_command_measures_the_policy_alone_on_seeds():
 ])
 def test_a_bad_folder_is_one_line_and_exit_2(tmp_path, make, expected):
     make(tmp_path)
-    done = subprocess.run([sys.executable, str(REPOSITORY / "benchmarks" / "learner_vs_optimum.py"),
+    done = subprocess.run([sys.executable, str(REPOSITORY / "investigations" / "learner_vs_optimum.py"),
                            "--runs", str(tmp_path)], capture_output=True, text=True, cwd=REPOSITORY,
                           timeout=120)
     assert done.returncode == 2

@@ -1,7 +1,7 @@
 """The README's tables of figures are what their commands give (issue 39): the first table against
 a fresh default run of use case 1 with the locked library versions, the scorecard against the
 committed ``docs/scorecard.json`` (issue 48), every marked table against its renderer.
-``benchmarks/readme_tables.py --write`` rewrites them."""
+``tables/readme_tables.py --write`` rewrites them."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 
 
 def _readme_tables():
-    spec = importlib.util.spec_from_file_location("readme_tables", REPOSITORY / "benchmarks" / "readme_tables.py")
+    spec = importlib.util.spec_from_file_location("readme_tables", REPOSITORY / "tables" / "readme_tables.py")
     assert spec and spec.loader
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -44,7 +44,7 @@ def test_the_readme_first_table_is_a_fresh_default_run(tmp_path):
     readme = readme_tables.readme_blocks((REPOSITORY / "README.md").read_text(encoding="utf-8"))
     assert readme["first-run"] == readme_tables.first_run_block(out), (
         "README.md's first table is not what `python experiments/run_usecase.py --uc 1` gives; "
-        "rewrite it with `python benchmarks/readme_tables.py --write`")
+        "rewrite it with `python tables/readme_tables.py --write`")
 
 
 def test_a_table_is_replaced_between_its_markers_only():
@@ -66,7 +66,7 @@ def test_the_readme_scorecard_is_the_committed_scorecard():
     readme = readme_tables.readme_blocks((REPOSITORY / "README.md").read_text(encoding="utf-8"))
     assert readme["scorecard"] == readme_tables.scorecard_block(_committed_scorecard()), (
         "README.md's scorecard is not docs/scorecard.json's; rewrite it with "
-        "`python benchmarks/readme_tables.py --write --only scorecard`")
+        "`python tables/readme_tables.py --write --only scorecard`")
 
 
 def test_the_committed_scorecard_is_the_latest_held_out_set_at_full_budget():
@@ -98,7 +98,7 @@ def test_the_first_tables_sentence_compares_safetail_with_every_x_1_2_3_baseline
 
 
 def test_the_least_loaded_table_counts_the_seeds_each_beats_safetail_in():
-    spec = importlib.util.spec_from_file_location("least_loaded", REPOSITORY / "benchmarks" / "least_loaded.py")
+    spec = importlib.util.spec_from_file_location("least_loaded", REPOSITORY / "tables" / "least_loaded.py")
     assert spec and spec.loader
     least_loaded = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(least_loaded)

@@ -2,7 +2,7 @@
 
 Under §III's target vector SafeTail learns, for each state, the subset that most often earns an
 Eq. 5 reward of exactly 0: one server that meets τ, or all n when none would
-(``benchmarks/eq5_policies.py``, docs/deviations.md D18). This module builds that policy
+(``investigations/eq5_policies.py``, docs/deviations.md D18). This module builds that policy
 without a learner, **most zeros**, and measures it on the very requests a run's test phase
 sees. SafeTail's share of zero rewards, its access rate and the paper's claims about how many
 servers it uses are then judged against what its own target can reach here (decision 2 of

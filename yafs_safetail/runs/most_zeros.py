@@ -6,7 +6,7 @@ D18). This module scores every subset of every request of a world by Eq. 5, from
 per-copy table (:func:`request_table`), fits that policy per key on the world-calibration seeds
 (:func:`fit_most_zeros`, :func:`fit_for`) and applies it to other requests
 (:func:`apply_most_zeros`). ``runs.method_optimum`` sets it beside a run's SafeTail;
-``benchmarks/eq5_policies.py`` beside the other policies Eq. 5 suggests.
+``investigations/eq5_policies.py`` beside the other policies Eq. 5 suggests.
 
 The key (:data:`DEFAULT_KEY`, ``loads+input+uplink``). SafeTail's state
 (``methods/safetail/spaces.py``) holds, per server, its bandwidths, memory and CPU utilisation,
@@ -19,7 +19,7 @@ a server's place in the key carries them), the input size (it sets the transfers
 and the user's uplink (it bounds every copy's upload and enters τ), each cut into terciles at
 the fit requests' quantiles. A key the fit never saw backs off to ``loads+input``, then to
 ``loads``, then to the subset with the most zeros overall, as a network answers an unseen state
-from its neighbours. ``python benchmarks/learner_vs_optimum.py --keys`` measures each key's
+from its neighbours. ``python investigations/learner_vs_optimum.py --keys`` measures each key's
 zero share on world-calibration seeds it was not fitted on: a finer key (the user's downlink
 too, :data:`KEYS`' last) has fewer fit requests per key than it gains, and ``loads+input`` earns
 a few thousandths more zeros than this key. The uplink stays in it all the same: SafeTail sees
