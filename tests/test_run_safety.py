@@ -195,6 +195,10 @@ def test_the_default_folder_names_preset_seed_and_scale():
     faster = module.parse_args(["--uc", "1", "--learning-rate", "1e-3", "--steps-scale", "0.1"])
     assert faster.out_dir == Path("results/uc1-paper-lr0.001-s0-x0.1")
     assert faster.learning_rate == 1e-3
+    text = module.parse_args(["--uc", "1", "--baseline-reading", "paper-text"])
+    assert text.out_dir == Path("results/uc1-paper-paper-text-s0")
+    q_style = module.parse_args(["--uc", "1", "--objective", "q-target", "--learning-rate", "3e-3"])
+    assert q_style.out_dir == Path("results/uc1-paper-lr0.003-q-target-s0")
 
 
 def test_the_default_folder_names_each_added_method(tmp_path):

@@ -77,7 +77,8 @@ def _parser() -> ArgumentParser:
 def default_out_dir(args: argparse.Namespace, method_names: Sequence[str] = ()) -> Path:
     """The results folder of a run without ``--out``.
 
-    ``results/uc<N>-<preset>[-lr<rate>][-<topology>]-s<seed>[-x<scale>][+<method>...]``. The
+    ``results/uc<N>-<preset>[-lr<rate>][-<objective>][-<baseline reading>][-<topology>]-s<seed>
+    [-x<scale>][+<method>...]``; the objective and the baseline reading only when given. The
     topology is in the name so that a run on another topology does not land in the paper
     topology's folder and stop at "holds an earlier run"; its file name (without ``.json``)
     appears only for a topology other than the paper's, so the paper's runs keep the names the
@@ -93,6 +94,9 @@ def default_out_dir(args: argparse.Namespace, method_names: Sequence[str] = ()) 
     """
     scale = "" if args.steps_scale == 1 else f"-x{args.steps_scale:g}"
     rate = "" if args.learning_rate is None else f"-lr{args.learning_rate:g}"
+    # Options that change what a run measures: a second run with one of them gets a folder of
+    # its own instead of stopping at "holds an earlier run".
+    readings = "".join(f"-{value}" for value in (args.objective, args.baseline_reading) if value is not None)
     # Compared as resolved files: the paper's topology given by a relative or linked path is
     # still the paper's.
     paper_topology = Path(args.topology).resolve() == DEFAULT_TOPOLOGY.resolve()
@@ -100,7 +104,7 @@ def default_out_dir(args: argparse.Namespace, method_names: Sequence[str] = ()) 
     # A policy's name is the user's (a class attribute may hold spaces or slashes): only the
     # characters that are safe in a folder name on every system stay.
     methods = "".join(f"+{re.sub(r'[^A-Za-z0-9._=-]+', '_', name)}" for name in method_names)
-    return Path("results") / f"uc{args.use_case}-{args.preset}{rate}{topology}-s{args.seed}{scale}{methods}"
+    return Path("results") / f"uc{args.use_case}-{args.preset}{rate}{readings}{topology}-s{args.seed}{scale}{methods}"
 
 
 def parse_args(argv: Sequence[str] | None) -> ExperimentConfig:
