@@ -75,3 +75,19 @@ class Later(Policy):
 
     def choose(self, observation):
         return [] if observation.step >= 20 else [int(np.argmin(observation.server_median_propagation_s))]
+
+
+class RaisesLate(Policy):
+    """Chooses well on its first requests, then fails on the 30th of a phase."""
+
+    observes = False
+
+    def __init__(self, n_servers, rng):
+        super().__init__(n_servers, rng)
+        self.calls = 0
+
+    def choose(self, observation):
+        self.calls += 1
+        if self.calls == 30:
+            raise RuntimeError("late bug")
+        return (0,)

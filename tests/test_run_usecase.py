@@ -248,6 +248,18 @@ def test_bad_arguments_give_one_line_and_keep_earlier_results(tmp_path, args, fr
     assert [p.name for p in tmp_path.iterdir()] == ["earlier"]
 
 
+def test_a_policy_that_fails_late_is_named_with_its_request_and_line(tmp_path):
+    out = tmp_path / "earlier"
+    kept = earlier_results(out)
+    done = run_script("--overwrite", "--quiet", "--uc", "1", *TINY, "--no-figures", "--method",
+                      f"{BAD_POLICIES}:RaisesLate", "--out", out)
+    line = (BAD_POLICIES.read_text().splitlines().index('            raise RuntimeError("late bug")') + 1)
+    assert_one_error_line(done, f"RaisesLate ({BAD_POLICIES}:RaisesLate)", "RaisesLate.choose() raised",
+                          "request 30 of its phase", f"RuntimeError: late bug (bad_policies.py line {line})")
+    assert snapshot(out) == kept  # nothing half-written in its place
+    assert [p.name for p in tmp_path.iterdir()] == ["earlier"]
+
+
 def test_a_policy_that_cannot_choose_stops_the_run_before_tensorflow_loads(tmp_path):
     from test_first_answer import PROBE
 

@@ -33,6 +33,9 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     checked_choice,
+    is_users,
+    raised_where,
+    where_defined,
 )
 from yafs_safetail.record import RequestRecord
 
@@ -65,7 +68,15 @@ class PolicyDispatcher:
         if self._observed_target_s is not None:
             self._observed_target_s[request] = self.world.observed_load_target_s(request, active_users)
         observation = self.world.observation(request, active_users) if self.policy.observes else None
-        chosen = self.policy.choose(observation)
+        try:
+            chosen = self.policy.choose(observation)
+        except Exception as error:
+            if not is_users(self.policy):
+                raise
+            # A user's policy failing mid-run: one line naming where, not a traceback.
+            cls = type(self.policy)
+            raise PolicyError(f"{self.policy.name} ({where_defined(cls)}): {cls.__name__}.choose() raised on "
+                              f"request {request + 1}: {raised_where(error, cls)}") from None
         # Checked once per distinct choice (most policies repeat a few): a tuple is looked up
         # as it is, anything else (a list, an array) is checked every time.
         if chosen.__class__ is tuple and chosen in self._checked:

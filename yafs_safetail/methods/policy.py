@@ -21,8 +21,11 @@ A new policy in a few lines::
 from __future__ import annotations
 
 import operator
+import sys
+import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
@@ -33,6 +36,27 @@ from yafs_safetail.record import RequestRecord
 
 class PolicyError(ValueError):
     """A bad policy, policy parameter or method name (one line naming it)."""
+
+
+def raised_where(error: BaseException, policy_class: type) -> str:
+    """``Type: message (file.py line N)``: the exception and the last line of the policy's own
+    file it passed through (one line, where a traceback would be many)."""
+    source = getattr(sys.modules.get(policy_class.__module__), "__file__", None)
+    frames = traceback.extract_tb(error.__traceback__)
+    own = [frame for frame in frames if source is not None and frame.filename == source] or frames[-1:]
+    at = f" ({Path(own[-1].filename).name} line {own[-1].lineno})" if own else ""
+    return f"{type(error).__name__}: {error}{at}"
+
+
+def is_users(policy: object) -> bool:
+    """Whether a policy's class comes from outside this package (a user's ``--method``)."""
+    return not type(policy).__module__.startswith("yafs_safetail.")
+
+
+def where_defined(policy_class: type) -> str:
+    """``path/file.py:Class`` (or ``module:Class`` without a file), as ``--method`` names it."""
+    source = getattr(sys.modules.get(policy_class.__module__), "__file__", None)
+    return f"{source or policy_class.__module__}:{policy_class.__name__}"
 
 
 #: How a policy can ask for its chosen servers' copies to be sent (``Policy.dispatch``):

@@ -15,7 +15,6 @@ import importlib
 import importlib.util
 import re
 import sys
-import traceback
 import zlib
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -33,6 +32,7 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     choice_problem,
+    raised_where,
 )
 
 ORACLE = "Oracle"
@@ -155,16 +155,6 @@ def _load_class(spec: str) -> type[Policy]:
     return policy_class
 
 
-def _raised(error: Exception, policy_class: type) -> str:
-    """``Type: message (file.py line N)``: the exception and the last line of the policy's own
-    file it passed through (one line, where a traceback would be many)."""
-    source = getattr(sys.modules.get(policy_class.__module__), "__file__", None)
-    frames = traceback.extract_tb(error.__traceback__)
-    own = [frame for frame in frames if source is not None and frame.filename == source] or frames[-1:]
-    at = f" ({Path(own[-1].filename).name} line {own[-1].lineno})" if own else ""
-    return f"{type(error).__name__}: {error}{at}"
-
-
 class UserMethod:
     """A user's policy named on the command line: ``[NAME=]path/file.py:Class`` or
     ``[NAME=]module:Class``. Its class is loaded (and checked) when the spec is parsed."""
@@ -188,7 +178,7 @@ class UserMethod:
                               f"(n_servers, rng): {error}") from None
         except Exception as error:  # a bug in the user's constructor: one line, where it is
             raise PolicyError(f"--method {self.spec}: {self.policy_class.__name__}(n_servers, rng) "
-                              f"raised {_raised(error, self.policy_class)}") from None
+                              f"raised {raised_where(error, self.policy_class)}") from None
         policy.name = self.name
         return policy
 
@@ -224,7 +214,7 @@ class UserMethod:
         try:
             chosen = policy.choose(observation if policy.observes else None)
         except Exception as error:
-            raise PolicyError(f"{first} raised {_raised(error, self.policy_class)}") from None
+            raise PolicyError(f"{first} raised {raised_where(error, self.policy_class)}") from None
         _, problem = choice_problem(chosen, n_servers)
         if problem:
             raise PolicyError(f"{first} returned {chosen!r}: {problem}")

@@ -23,6 +23,9 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     checked_choice,
+    is_users,
+    raised_where,
+    where_defined,
 )
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.sim.hooks import SINK_MODULE, EdgeModel
@@ -106,7 +109,15 @@ class PolicySelection(Selection):
         if message.dst == model.service_module:
             step = model.begin_request(message.id)
             observation: Observation | None = model.observe(step) if self.policy.observes else None
-            chosen = self.policy.choose(observation)
+            try:
+                chosen = self.policy.choose(observation)
+            except Exception as error:
+                if not is_users(self.policy):
+                    raise
+                # A user's policy failing mid-run: one line naming where, not a traceback.
+                cls = type(self.policy)
+                raise PolicyError(f"{self.name} ({where_defined(cls)}): {cls.__name__}.choose() raised on "
+                                  f"request {step + 1} of its phase: {raised_where(error, cls)}") from None
             # Valid subsets recur (at most 2^n of them): validate and route each once.
             cached = self._request_routes.get(chosen) if type(chosen) is tuple else None
             if cached is None:
