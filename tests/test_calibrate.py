@@ -45,13 +45,13 @@ def test_implied_cells_are_the_published_ratios_combined():
 
 def test_objective_is_zero_at_the_implied_cells_and_symmetric_in_log():
     exact = {world_fit.cell_key(m, p): v for (m, p), v in world_fit.implied_over_oracle().items()}
-    value, within, means = world_fit.objective([exact, exact])
+    value, within, means = world_fit.fit_score([exact, exact])
     assert value == 0.0 and within == 1.0 and means == pytest.approx(exact)
     double = {k: 2 * v for k, v in exact.items()}
     half = {k: v / 2 for k, v in exact.items()}
-    assert world_fit.objective([double])[0] == pytest.approx(math.log(2))
-    assert world_fit.objective([half])[0] == pytest.approx(math.log(2))
-    assert world_fit.objective([double])[1] == 0.0
+    assert world_fit.fit_score([double])[0] == pytest.approx(math.log(2))
+    assert world_fit.fit_score([half])[0] == pytest.approx(math.log(2))
+    assert world_fit.fit_score([double])[1] == 0.0
 
 
 @pytest.mark.parametrize("candidate", [

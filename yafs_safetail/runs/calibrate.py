@@ -5,17 +5,18 @@ shared, or how long the on-device fallback takes (yafs_safetail.edge.calibration
 parameter with its rule). This module fits them, one value each for all three use cases, to
 what the paper's use-case-1 numbers imply about the world alone: the latency of Rand-1, MinLoad-1
 and MinProp-1 over Oracle's at p50, p90, p95 and p99 (:func:`implied_over_oracle`). SafeTail is
-not in the objective, so the fit does not depend on how a network happened to train, and it
+not in the fit score, so the fit does not depend on how a network happened to train, and it
 needs no TensorFlow.
 
 The flow reads top to bottom in :func:`calibrate`:
 
 1. every point of a fixed grid (:data:`GRID`) is a candidate world;
-2. each is scored on the calibration seeds by the learner-free objective (``runs.world_fit``:
+2. each is scored on the calibration seeds by the learner-free fit score (``runs.world_fit``:
    UC1's test world drawn with the candidate's settings, each method's latency read from the
    world's per-copy table);
-3. the objective is the mean over seeds and the twelve cells of |log(ours / implied)|;
-4. the lowest objective wins, ties by grid order (a parameter the tied candidates differ in is
+3. the fit score (docs/calibration.md and the files: the objective) is the mean over seeds and
+   the twelve cells of |log(ours / implied)|;
+4. the lowest fit score wins, ties by grid order (a parameter the tied candidates differ in is
    recorded as unidentified); every candidate goes to ``evaluations.csv``, the winner with its
    provenance to ``calibration.json``.
 
@@ -187,14 +188,14 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
             for done, future in enumerate(futures, 1):
                 evaluations += future.result()
                 log(f"scored {len(evaluations)} of {len(candidates)} candidates ({done}/{len(futures)})")
-    ranked = sorted(range(len(evaluations)), key=lambda i: (evaluations[i].objective, i))
+    ranked = sorted(range(len(evaluations)), key=lambda i: (evaluations[i].fit_score, i))
     best = evaluations[ranked[0]]
-    # Candidates that score exactly as the best differ only in parameters the objective cannot
+    # Candidates that score exactly as the best differ only in parameters the fit score cannot
     # see (e.g. the fallback multiple where no server ever refuses): those are unidentified,
     # and the grid's order, not the data, chose their value. The runner-up is the best other score.
-    tied = [e for e in evaluations if e.objective == best.objective]
+    tied = [e for e in evaluations if e.fit_score == best.fit_score]
     unidentified = [name for name in config.grid if len({e.parameters[name] for e in tied}) > 1]
-    runner_up = next((evaluations[i] for i in ranked if evaluations[i].objective > best.objective), best)
+    runner_up = next((evaluations[i] for i in ranked if evaluations[i].fit_score > best.fit_score), best)
     config.out_dir.mkdir(parents=True, exist_ok=True)
     trace = pd.DataFrame([e.row() for e in evaluations])
     results.write_text_atomic(config.out_dir / EVALUATIONS_FILE, trace.to_csv(index=False))
@@ -208,8 +209,8 @@ def calibrate(config: CalibrationConfig, log: Callable[[str], None] | None = Non
             "implied_over_oracle": {cell_key(m, p): round(v, 4)
                                     for (m, p), v in implied_over_oracle().items()},
             "objective": "mean over seeds and the twelve cells of |log(ours / implied)|",
-            "objective_value": round(best.objective, 6),
-            "runner_up_objective": round(runner_up.objective, 6),
+            "objective_value": round(best.fit_score, 6),
+            "runner_up_objective": round(runner_up.fit_score, 6),
             "runner_up": runner_up.parameters,
             "unidentified": unidentified,
             "within_20_percent": round(best.within_20, 4),

@@ -1,12 +1,13 @@
-"""The learner-free objective the world is fitted to (docs/calibration.md, rule 1).
+"""The learner-free fit score the world is fitted to (docs/calibration.md, rule 1, calls it the
+objective; the files keep that name).
 
 What the paper's use-case-1 numbers imply about the world alone (:func:`implied_over_oracle`:
 Rand-1's, MinLoad-1's and MinProp-1's latency over Oracle's at p50, p90, p95 and p99), and how
 far a candidate world is from it (:func:`score`): for each calibration seed, UC1's test world
 is drawn with the candidate's settings and each method's latency is read from the world's
 per-copy table (:func:`method_latencies_s`; with one request a minute every copy has ended
-before the next request, so this equals the simulation, which a test checks); the objective is
-the mean over seeds and the twelve cells of |log(ours / implied)| (:func:`objective`). No
+before the next request, so this equals the simulation, which a test checks); the fit score is
+the mean over seeds and the twelve cells of |log(ours / implied)| (:func:`fit_score`). No
 SafeTail, no TensorFlow. ``runs.calibrate`` searches its grid with it.
 """
 
@@ -147,18 +148,19 @@ class Evaluation:
     """One candidate's score over the calibration seeds."""
 
     parameters: dict[str, Any]
-    objective: float
+    fit_score: float
     within_20: float
     ratios: dict[str, float] = field(default_factory=dict)
     fallback_share: dict[str, float] = field(default_factory=dict)
 
     def row(self) -> dict[str, Any]:
-        return {**self.parameters, "objective": self.objective, "within_20": self.within_20,
+        # evaluations.csv's column keeps the name users read: "objective".
+        return {**self.parameters, "objective": self.fit_score, "within_20": self.within_20,
                 **{f"ratio {k}": v for k, v in self.ratios.items()},
                 **{f"fallback {k}": v for k, v in self.fallback_share.items()}}
 
 
-def objective(per_seed: Sequence[Mapping[str, float]]) -> tuple[float, float, dict[str, float]]:
+def fit_score(per_seed: Sequence[Mapping[str, float]]) -> tuple[float, float, dict[str, float]]:
     """(mean |log(ours / implied)|, share within ±20%, mean ratio per cell) over seeds and the
     twelve cells; ``per_seed`` maps :func:`cell_key` to our latency ratio over Oracle's."""
     implied = implied_over_oracle()
@@ -186,7 +188,7 @@ def _choices(seed: int, n_servers: int, n_steps: int) -> SeedChoices:
 
 def score(candidate: Mapping[str, Any], seeds: Sequence[int], n_steps: int = TEST_STEPS,
           topology: Path = DEFAULT_TOPOLOGY, placement: Path = DEFAULT_PLACEMENT) -> Evaluation:
-    """A candidate's objective over ``seeds`` (each seed's UC1 test world)."""
+    """A candidate's fit score over ``seeds`` (each seed's UC1 test world)."""
     use_case, inputs, scenario = _scenario(str(topology), str(placement))
     settings = settings_for(candidate)
     per_seed, fallbacks = [], []
@@ -200,6 +202,6 @@ def score(candidate: Mapping[str, Any], seeds: Sequence[int], n_steps: int = TES
                                             oracle, strict=True)})
         fallbacks.append({m: float(np.mean(latencies[m] == world.fallback_latency_s))
                           for m in (ORACLE, *X1_BASELINES)})
-    value, within, means = objective(per_seed)
+    value, within, means = fit_score(per_seed)
     share = {m: float(np.mean([f[m] for f in fallbacks])) for m in (ORACLE, *X1_BASELINES)}
     return Evaluation(dict(candidate), value, within, means, share)
