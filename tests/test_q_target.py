@@ -38,7 +38,7 @@ def test_targets_are_the_outputs_with_the_taken_entry_bootstrapped_from_the_next
     actions, rewards = [4, 30, 0, 7, 12], [-0.01, 0.0, -0.2, -0.003, -0.05]
     for state, action, reward in zip(x, actions, rewards, strict=True):
         learner.observe(state, action, reward)
-    targets = learner._q_targets(5)
+    targets = learner.objective.round_targets(learner._replay(5), learner.predict_probabilities)
     outputs = learner.predict_probabilities(x)
     for row in range(5):
         expected = outputs[row].copy()

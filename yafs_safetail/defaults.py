@@ -56,7 +56,8 @@ PRESET_NAMES = ("paper", "paper-literal", "tuned")
 #: The paper learner's method name (its rows' ``method``).
 SAFETAIL = "SafeTail"
 #: What SafeTail's network is trained to output (``LearnerConfig.objective``): §III's target
-#: vector, the original code's Q-style targets (D18), or each action's value (D13).
+#: vector, the original code's Q-style targets (D18), or each action's value (D13). The names the
+#: project ships; each is a class of ``methods.objectives``, whose registry the options accept.
 OBJECTIVES = ("target-vector", "q-target", "value")
 #: How SafeTail sends its subset (``SafeTailPolicy``'s ``dispatch``): every copy at once (the
 #: paper), or tied copies cancelled once one starts running.

@@ -19,6 +19,7 @@ from yafs_safetail import __version__
 from yafs_safetail.cli import add_plumbing, add_verbosity_options
 from yafs_safetail.contention.config import ContentionConfig, ContentionError
 from yafs_safetail.contention.sweep_config import SWEEP_WORLD, ContentionSweep
+from yafs_safetail.methods.objectives import averages_networks
 from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.options import add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
@@ -93,7 +94,7 @@ def check_methods(config: ContentionSweep) -> None:
 
 def check_value_networks(args: argparse.Namespace) -> None:
     """--value-networks only with the value learner (one line, before the sweep is built)."""
-    if args.n_networks is not None and "value" not in args.objectives:
+    if args.n_networks is not None and not any(averages_networks(name) for name in args.objectives):
         raise ContentionError(f"--value-networks {args.n_networks}: only with the value learner "
                               "(SafeTail-CA)")
 

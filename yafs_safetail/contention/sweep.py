@@ -28,31 +28,20 @@ from yafs_safetail.contention.sweep_config import ContentionSweep
 from yafs_safetail.contention.sweep_learners import SafeTailVariant
 from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.policy import Policy
-from yafs_safetail.methods.registry import SAFETAIL, make_baseline, method_rng
+from yafs_safetail.methods.registry import make_baseline, method_rng
+from yafs_safetail.methods.safetail.assemble import make_safetail
 from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 from yafs_safetail.methods.safetail.presets import get_preset
 
 
 def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int) -> SafeTailPolicy:
-    # Imported here: the learner brings TensorFlow, which a sweep without SafeTail never needs.
-    from yafs_safetail.methods.safetail.learner import SafeTailLearner
-    from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
-
-    use_case = world.use_case
-    config = replace(get_preset(variant.preset, use_case.number, train_steps=variant.train_requests),
+    """One SafeTail of the sweep, built as every SafeTail is (``methods.safetail.assemble``). Its
+    generators are seeded as a sweep with that learner alone seeds them, so its rows are the same
+    whether the other SafeTail runs beside it or not."""
+    config = replace(get_preset(variant.preset, world.use_case.number, train_steps=variant.train_requests),
                      objective=variant.learner, n_networks=variant.n_networks)
-    # Each SafeTail has generators of its own, seeded as a sweep with that learner alone seeds
-    # them (the learner from the seed, the policy's from "SafeTail"), so its rows are the same
-    # whether the other SafeTail runs beside it or not; neither draws from the worlds' streams.
-    learner = SafeTailLearner(
-        world.n_servers,
-        state_dim(world.n_servers, len(use_case.gamma_columns), len(world.scenario.user_location)),
-        config, seed, metadata={"use_case": use_case.number, "world": "contention"})
-    policy = SafeTailPolicy(world.n_servers, method_rng(seed, SAFETAIL), learner=learner,
-                            scales=StateScales.for_use_case(use_case.number), training=True,
-                            reward_name=variant.reward, dispatch=variant.dispatch)
-    policy.name = variant.name
-    return policy
+    return make_safetail(world.use_case, world.scenario, config, seed, metadata={"world": "contention"},
+                         reward=variant.reward, dispatch=variant.dispatch, name=variant.name)
 
 
 def _row_line(row: Mapping[str, Any]) -> str:

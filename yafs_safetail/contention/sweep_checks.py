@@ -7,7 +7,7 @@ import argparse
 import math
 from typing import Any
 
-from yafs_safetail.defaults import OBJECTIVES
+from yafs_safetail.methods.objectives import objective_names
 from yafs_safetail.settings.declare import Check
 from yafs_safetail.settings.parse import load_list
 
@@ -23,16 +23,16 @@ METHOD_NAMES = Check("comma-separated method names",
 
 
 def _learner_names(text: str) -> tuple[str, ...]:
-    """``--objectives``: one or both of OBJECTIVES, comma-separated, in the order given."""
+    """``--objectives``: distinct objectives' names, comma-separated, in the order given."""
     names = tuple(name.strip() for name in text.split(",") if name.strip())
-    if not names or len(set(names)) != len(names) or any(name not in OBJECTIVES for name in names):
-        raise argparse.ArgumentTypeError(f"expected distinct names of {', '.join(OBJECTIVES)}, got {text!r}")
+    if not names or len(set(names)) != len(names) or any(name not in objective_names() for name in names):
+        raise argparse.ArgumentTypeError(f"expected distinct names of {', '.join(objective_names())}, got {text!r}")
     return names
 
 
-#: SafeTail's learners: distinct names of OBJECTIVES.
-LEARNERS = Check(f"distinct names of {', '.join(OBJECTIVES)}", lambda v: isinstance(v, tuple) and bool(v) and len(
-    set(v)) == len(v) and all(name in OBJECTIVES for name in v), _learner_names)
+#: SafeTail's learners: distinct objectives' names (methods.objectives).
+LEARNERS = Check(f"distinct names of {', '.join(objective_names())}", lambda v: isinstance(v, tuple) and bool(v) and len(
+    set(v)) == len(v) and all(name in objective_names() for name in v), _learner_names)
 
 
 def _is_load(value: Any) -> bool:

@@ -4,7 +4,7 @@ declared once with its option and check (``settings.declare.setting``). Which Sa
 can train, and how each one learns, is ``contention.sweep_learners``.
 
 Light modules only (the standard library, ``defaults``, ``settings``,
-``contention.config``, ``edge.failure_settings``): the sweep commands build their parsers from
+``contention.config``, ``edge.failure_settings``, ``methods.objectives``): the sweep commands build their parsers from
 these classes, and ``--help`` or a bad argument must answer before NumPy, pandas or TensorFlow
 loads (``tests/test_first_answer.py``). What needs the learner's presets (each SafeTail's training
 budget) imports them when asked, after the arguments are checked. ``contention.sweep`` runs the
@@ -34,13 +34,12 @@ from yafs_safetail.contention.sweep_checks import (
 from yafs_safetail.contention.sweep_learners import (
     DEFAULT_SWEEP_OBJECTIVES,
     DEFAULT_VALUE_NETWORKS,
-    LEARNER_DEFAULTS,
-    SAFETAIL_LEARNERS,
     SafeTailVariant,
     training_requests,
 )
 from yafs_safetail.defaults import PRESET_NAMES, SAFETAIL_DISPATCH
 from yafs_safetail.edge.failure_settings import DEFAULT_MTTR_S, FailureSettings
+from yafs_safetail.methods.objectives import objective_named
 from yafs_safetail.settings.declare import (
     BOOLEAN,
     POSITIVE_INTEGER,
@@ -170,19 +169,21 @@ class ContentionSweep:
     def __post_init__(self) -> None:
         check_config(self, "field")  # each field against its declaration
         n_networks = self.networks_averaged
-        if n_networks > 1 and "value" not in self.objectives:
+        learners = [objective_named(name) for name in self.objectives]
+        if n_networks > 1 and not any(learner.averages_networks for learner in learners):
             raise ContentionError(f"{n_networks} value networks: only the value learner averages networks")
-        if self.objectives == ("value",) and self.reward != "paper":
-            raise ContentionError(f"reward {self.reward!r}: the value learner has its own reward "
-                                  "(latency-cost); leave the reward at paper")
+        if all(learner.own_reward for learner in learners) and self.reward != "paper":
+            rewards = ", ".join(sorted({str(learner.own_reward) for learner in learners}))
+            raise ContentionError(f"reward {self.reward!r}: the {' and '.join(self.objectives)} learner has its own "
+                                  f"reward ({rewards}); leave the reward at paper")
 
     @property
     def networks_averaged(self) -> int:
-        """The networks the value learner averages (``n_networks`` resolved; 1 without the value
-        learner)."""
+        """The networks the value learner averages (``n_networks`` resolved; 1 without a learner
+        that averages networks)."""
         if self.n_networks is not None:
             return self.n_networks
-        return DEFAULT_VALUE_NETWORKS if "value" in self.objectives else 1
+        return max((objective_named(name).sweep_networks for name in self.objectives), default=1)
 
     @property
     def safetails(self) -> tuple[SafeTailVariant, ...]:
@@ -190,14 +191,13 @@ class ContentionSweep:
         if not self.safetail:
             return ()
         variants = []
-        for learner in self.objectives:
-            preset, dispatch = LEARNER_DEFAULTS[learner]
-            preset = self.preset or preset
-            value = learner == "value"
+        for name in self.objectives:
+            learner = objective_named(name)
+            preset = self.preset or learner.preset
             variants.append(SafeTailVariant(
-                name=SAFETAIL_LEARNERS[learner], learner=learner, preset=preset, dispatch=self.dispatch or dispatch,
-                reward="latency-cost" if value else self.reward,
-                n_networks=self.networks_averaged if value else 1,
+                name=learner.method_name, learner=name, preset=preset, dispatch=self.dispatch or learner.dispatch,
+                reward=learner.own_reward or self.reward,
+                n_networks=self.networks_averaged if learner.averages_networks else 1,
                 train_requests=training_requests(preset, self.base.use_case, self.steps_scale)))
         return tuple(variants)
 

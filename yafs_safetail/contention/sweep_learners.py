@@ -2,8 +2,9 @@
 rows' method name, its default preset and dispatch (:data:`LEARNER_DEFAULTS`), and, once a
 sweep's configuration resolves them, a :class:`SafeTailVariant`.
 
-A light module (the standard library and ``defaults``), as ``contention.sweep_config``, which
-builds the sweep commands' parsers from it: the learner's presets are imported only when a
+Each is its objective's (``methods.objectives``: its rows' name, preset, dispatch, networks).
+A light module (the standard library and ``methods.objectives``), as ``contention.sweep_config``,
+which builds the sweep commands' parsers from it: the learner's presets are imported only when a
 SafeTail's training budget is asked for.
 """
 
@@ -11,25 +12,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from yafs_safetail.defaults import SAFETAIL
+from yafs_safetail.methods.objectives import objective_named, objective_names
 
-#: The row of each SafeTail learner (``SweepConfig.learners``): the paper's §III learner is
-#: ``SafeTail``; the original code's Q-style targets (D18) are ``SafeTail-Q``; the value learner,
-#: which prices its copies by the load they join, is ``SafeTail-CA`` (contention-aware, beyond
-#: the paper: docs/deviations.md D13).
-SAFETAIL_CA = "SafeTail-CA"
-SAFETAIL_Q = "SafeTail-Q"
-SAFETAIL_LEARNERS: dict[str, str] = {"target-vector": SAFETAIL, "q-target": SAFETAIL_Q, "value": SAFETAIL_CA}
+#: The row of each SafeTail learner (``SweepConfig.learners``), its objective's ``method_name``:
+#: the paper's §III learner is ``SafeTail``; the original code's Q-style targets (D18) are
+#: ``SafeTail-Q``; the value learner, which prices its copies by the load they join, is
+#: ``SafeTail-CA`` (contention-aware, beyond the paper: docs/deviations.md D13).
+SAFETAIL_LEARNERS: dict[str, str] = {name: objective_named(name).method_name for name in objective_names()}
+SAFETAIL_CA = objective_named("value").method_name
+SAFETAIL_Q = objective_named("q-target").method_name
 #: The SafeTails a sweep trains unless ``--objectives`` says otherwise: those every measurement
 #: of the contention world was made with (docs/contention.md).
 DEFAULT_SWEEP_OBJECTIVES: tuple[str, ...] = ("target-vector", "value")
-#: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise:
-#: the paper's as the paper has it; the contention-aware one as it was chosen (D13).
-LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {"target-vector": ("paper", "all"), "q-target": ("paper", "all"),
-                                                "value": ("tuned", "tied")}
-#: How many networks the value learner averages unless told (``SweepConfig.value_networks``):
-#: chosen on seeds 0-6 over one network, then judged on seeds 19-30 (docs/deviations.md D13).
-DEFAULT_VALUE_NETWORKS = 3
+#: Each learner's preset and dispatch unless ``--preset`` / ``--safetail-dispatch`` say otherwise
+#: (its objective's ``preset`` and ``dispatch``): the paper's as the paper has it; the
+#: contention-aware one as it was chosen (D13).
+LEARNER_DEFAULTS: dict[str, tuple[str, str]] = {
+    name: (objective_named(name).preset, objective_named(name).dispatch) for name in objective_names()}
+#: How many networks the value learner averages unless told (``SweepConfig.value_networks``;
+#: its objective's ``sweep_networks``): chosen on seeds 0-6 over one network, then judged on
+#: seeds 19-30 (docs/deviations.md D13).
+DEFAULT_VALUE_NETWORKS = objective_named("value").sweep_networks
 
 
 def training_requests(preset: str, use_case: int, steps_scale: float) -> int:
@@ -45,7 +48,7 @@ class SafeTailVariant:
 
     Attributes:
         name: its rows' method name (``SafeTail``, ``SafeTail-Q`` or ``SafeTail-CA``).
-        learner: its training objective (one of OBJECTIVES).
+        learner: its training objective's name (``methods.objectives``).
         preset: its learner preset.
         dispatch: how its subset is sent (all at once or tied).
         reward: the reward it is trained with (the value learner's own ``latency-cost``).

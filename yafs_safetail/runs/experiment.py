@@ -47,6 +47,7 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.usecases import UseCase
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
+from yafs_safetail.methods.objectives import averages_networks, objective_names
 from yafs_safetail.methods.registry import baseline_names, method_rng, sort_methods
 from yafs_safetail.methods.safetail.persistence import read_policy_sidecar
 from yafs_safetail.methods.safetail.presets import LearnerConfig
@@ -112,9 +113,10 @@ def _check(config: ExperimentConfig) -> _Inputs:
         raise ExperimentError("--learning-rate: nothing trains with --policy; give one or the other")
     if config.objective is not None and config.policy is not None:
         raise ExperimentError("--objective: a saved policy has its own learner (--policy); give one or the other")
-    if config.n_networks is not None and config.objective != "value":
-        raise ExperimentError(f"--value-networks {config.n_networks}: only the value learner averages "
-                              "networks; give --objective value")
+    if config.n_networks is not None and not averages_networks(config.objective):
+        averaging = " or ".join(objective_names(lambda objective: objective.averages_networks))
+        raise ExperimentError(f"--value-networks {config.n_networks}: only the {averaging} learner averages "
+                              f"networks; give --objective {averaging}")
     if not config.redundancy_levels:
         raise ExperimentError("--redundancy: give at least one level x")
     recipe = world_recipe(config)  # every field's own check, then the traces and the scenario

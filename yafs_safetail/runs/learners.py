@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
 from yafs_safetail.methods.registry import SAFETAIL, UserMethod, method_rng
-from yafs_safetail.methods.safetail.spaces import StateScales, state_dim
+from yafs_safetail.methods.safetail.assemble import make_safetail
 
 if TYPE_CHECKING:
     from yafs_safetail.methods.safetail.policy import SafeTailPolicy
@@ -59,24 +59,11 @@ def make_learners(config: ExperimentConfig, inputs: _Inputs,
 
 
 def _safetail(config: ExperimentConfig, inputs: _Inputs) -> SafeTailPolicy:
-    """SafeTail with a fresh learner of the run's preset (and ``--objective``), or the saved one of
-    ``--policy``."""
-    from yafs_safetail.methods.safetail.learner import SafeTailLearner
-    from yafs_safetail.methods.safetail.policy import SafeTailPolicy
-
-    scenario, use_case = inputs.scenario, inputs.use_case
-    learner = SafeTailLearner(
-        scenario.n_servers,
-        state_dim(scenario.n_servers, len(use_case.gamma_columns), len(scenario.user_location)),
-        inputs.learner_config, config.seed,
-        metadata={"use_case": use_case.number, "topology": str(config.topology)},
-    )
-    # The value learner (--objective value, D13) has its own reward, as in the contention world;
-    # the §III learner has Eq. 5. Either way copies are sent all at once, as the paper's.
-    reward_name = "latency-cost" if inputs.learner_config.objective == "value" else "paper"
-    policy = SafeTailPolicy(scenario.n_servers, method_rng(config.seed, SAFETAIL), learner=learner,
-                            scales=StateScales.for_use_case(use_case.number), training=True,
-                            reward_name=reward_name)
+    """SafeTail with a fresh learner of the run's preset (and ``--objective``, with the reward it
+    brings: the value learner's own, D13, else Eq. 5; copies sent all at once, as the paper's),
+    or the saved one of ``--policy``."""
+    policy = make_safetail(inputs.use_case, inputs.scenario, inputs.learner_config, config.seed,
+                           metadata={"topology": str(config.topology)})
     if config.policy is not None:
         policy.load(config.policy)
     return policy

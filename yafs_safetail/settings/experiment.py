@@ -44,11 +44,11 @@ from yafs_safetail.defaults import (
     DEFAULT_TOPOLOGY,
     DEFAULT_TRACE_DIR,
     MOBILITY_MODELS,
-    OBJECTIVES,
     PRESET_NAMES,
     WALKING_SPEED_MPS,
 )
 from yafs_safetail.edge.published import USE_CASES
+from yafs_safetail.methods.objectives import objective_names
 from yafs_safetail.settings.declare import (
     BOOLEAN,
     FORMATS,
@@ -222,7 +222,7 @@ class LearnerOverrides:
         "preset's default), q-target (the original code's Q-style targets, deviation D18) or, beyond the paper, value (the network regresses each "
         "action's latency score, less the D15 prices when set, and copies to busy servers are priced "
         "at dispatch: the contention world's SafeTail-CA learner; deviations D13, D15 in the "
-        "documentation)", check=one_of(OBJECTIVES),
+        "documentation)", check=one_of(objective_names()),
         optional=True, deprecated=("--learner",))
     n_networks: int | None = setting(
         None, "with --objective value: how many value networks, each from its own initial weights, "

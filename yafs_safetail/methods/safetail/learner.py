@@ -1,33 +1,28 @@
-"""The SafeTail learner: ε-greedy decisions (Eq. 3), what a reward becomes as a training target,
-and training rounds on them.
+"""The SafeTail learner: ε-greedy decisions (Eq. 3) and the training loop: each (ω, A, R) tuple
+stored with its objective's target, a training round every κ tuples.
 
-Three objectives (``LearnerConfig.objective``):
-
-* ``"target-vector"``: §III's target vector, fitted by the softmax's cross-entropy;
-* ``"q-target"``: the original code's targets (facts.md; docs/deviations.md D18): the network's
-  own outputs for the state, the taken action's entry replaced by R + 0.95 · max of its outputs
-  for the next request's state, with the same softmax and cross-entropy;
-* ``"value"`` (beyond the paper, D13): the same network (or the mean of ``n_networks`` of them)
-  trained to predict each action's latency score (the copy price, known at dispatch, is
-  subtracted when choosing)."""
+What a reward becomes as a training target is the objective's (``LearnerConfig.objective``;
+``methods.objectives``: §III's target vector, the original code's Q-style targets,
+each action's value). ``target_vector`` stays importable from here."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from yafs_safetail.methods.objectives import Objective, Replay
+from yafs_safetail.methods.objectives import target_vector as target_vector
 from yafs_safetail.methods.safetail.network import (
     build_network,
     enable_determinism,
     fast_forward,
     make_round_updates,
 )
-from yafs_safetail.methods.safetail.presets import Q_TARGET_DISCOUNT, LearnerConfig
-from yafs_safetail.methods.safetail.spaces import n_actions, subset_matrix
+from yafs_safetail.methods.safetail.presets import LearnerConfig
+from yafs_safetail.methods.safetail.spaces import n_actions
 
 
 class SafeTailLearner:
@@ -100,9 +95,9 @@ class SafeTailLearner:
         self._states = np.zeros((capacity, state_dim), dtype=np.float32)
         # One target column per network output: n_networks copies of the action columns.
         self._targets = np.zeros((capacity, config.n_networks * self.n_actions), dtype=np.float32)
-        # q-target only: each tuple's next state, once the next request has come (a tuple
-        # without one is left out of the rounds until it has).
-        q_rows = capacity if config.objective == "q-target" else 0
+        # Only for an objective that keeps them (q-target): each tuple's next state, once the
+        # next request has come (a tuple without one is left out of the rounds until it has).
+        q_rows = capacity if self.objective.keeps_next_state else 0
         self._next_states = np.zeros((q_rows, state_dim), dtype=np.float32)
         self._has_next = np.zeros(q_rows, dtype=bool)
         self._n_stored = 0
@@ -129,6 +124,11 @@ class SafeTailLearner:
         c = self.config
         decays = self._n_stored if c.epsilon_per_step else self._n_rounds
         return max(c.epsilon_min, c.epsilon_start - decays * c.epsilon_decay)
+
+    @property
+    def objective(self) -> Objective:
+        """What the network is trained toward (``config.objective``'s objective)."""
+        return self.config.learning_objective
 
     @property
     def n_training_rounds(self) -> int:
@@ -194,19 +194,8 @@ class SafeTailLearner:
         if state.shape != (self.state_dim,):
             raise ValueError(f"state must have shape ({self.state_dim},), got {state.shape}")
         slot = self._n_buffered % self.config.replay_capacity
-        objective = self.config.objective
-        if objective == "target-vector":
-            self._targets[slot] = target_vector(action, reward, self.n_servers)
-        else:
-            if not 0 <= action < self.n_actions or not math.isfinite(reward):
-                raise ValueError(f"action {action!r} or reward {reward!r} out of range")
-            if objective == "q-target" and reward > 0.0:
-                raise ValueError(f"reward must be finite and <= 0 (Eq. 5), got {reward!r}")
-            # Only the action taken has a target, in every network; the value loss skips the
-            # NaN entries and a q-target round fills them in (_q_targets).
-            self._targets[slot] = np.nan
-            self._targets[slot, action::self.n_actions] = reward
-        if objective == "q-target":
+        self.objective.write_target(self._targets[slot], action, reward, self.n_servers)
+        if self.objective.keeps_next_state:
             # This state is the previous tuple's next state.
             if self._n_buffered:
                 previous = (self._n_buffered - 1) % self.config.replay_capacity
@@ -224,21 +213,18 @@ class SafeTailLearner:
     def _train_round(self) -> None:
         c = self.config
         n_rows = min(c.replay_capacity, self._n_buffered)
-        # The ring buffer holds exactly the most recent n_rows tuples in slots 0..n_rows-1.
-        states = self._states[:n_rows]
-        targets = self._targets[:n_rows]
-        # The rows a round may draw: q-target waits for a tuple's next state.
-        candidates: int | np.ndarray = n_rows
-        if c.objective == "q-target":
-            targets = self._q_targets(n_rows)
-            candidates = np.flatnonzero(self._has_next[:n_rows])
+        replay = self._replay(n_rows)
+        states = replay.states
+        targets = self.objective.round_targets(replay, self.predict_probabilities)
+        # The rows a round may draw (q-target waits for a tuple's next state).
+        candidates = self.objective.round_rows(replay)
         if c.replay_sampling == "uniform":
             batches = np.stack([
                 self._shuffle_rng.choice(candidates, size=c.batch_size, replace=False)
                 for _ in range(c.updates_per_round)
             ])
             if self._round_updates is None:
-                self._round_updates = make_round_updates(self._model, c.objective)
+                self._round_updates = make_round_updates(self._model, self.objective)
             self.last_round_loss = self._round_updates(states, targets, batches)
         else:
             losses = []
@@ -251,20 +237,13 @@ class SafeTailLearner:
         self._forward = fast_forward(self._model, self.config)
         self._n_rounds += 1
 
-    def _q_targets(self, n_rows: int) -> np.ndarray:
-        """The q-target objective's targets for the first ``n_rows`` stored tuples, from the
-        network as it stands: its outputs for each state, the taken action's entry replaced by
-        R + γ · max of its outputs for the next state (rows without one keep R there; no
-        round draws them)."""
-        stored = self._targets[:n_rows]
-        taken = np.isfinite(stored)
-        actions = taken.argmax(axis=1)
-        rows = np.arange(n_rows)
-        targets = self.predict_probabilities(self._states[:n_rows]).astype(np.float32)
-        best_next = self.predict_probabilities(self._next_states[:n_rows]).max(axis=1)
-        bootstrap = np.where(self._has_next[:n_rows], Q_TARGET_DISCOUNT * best_next, 0.0)
-        targets[rows, actions] = stored[rows, actions] + bootstrap
-        return targets
+    def _replay(self, n_rows: int) -> Replay:
+        """The first ``n_rows`` slots of the replay buffer (the ring buffer holds exactly the most
+        recent n_rows tuples in slots 0..n_rows-1)."""
+        if not self.objective.keeps_next_state:
+            return Replay(self._states[:n_rows], self._targets[:n_rows])
+        return Replay(self._states[:n_rows], self._targets[:n_rows], self._next_states[:n_rows],
+                      self._has_next[:n_rows])
 
     def predict_probabilities(self, states: np.ndarray) -> np.ndarray:
         """The Keras model's outputs for a batch of states (for analysis, not speed): softmax
@@ -290,7 +269,7 @@ class SafeTailLearner:
             "explore_rng": self._explore_rng.bit_generator.state,
             "shuffle_rng": self._shuffle_rng.bit_generator.state,
         }
-        if self.config.objective == "q-target":
+        if self.objective.keeps_next_state:
             state["next_states"] = self._next_states.copy()
             state["has_next"] = self._has_next.copy()
         return state
@@ -306,7 +285,7 @@ class SafeTailLearner:
         if (len(weights) != len(self._model.get_weights()) or len(state["optimizer"]) != len(variables)
                 or state["states"].shape != self._states.shape
                 or state["targets"].shape != self._targets.shape
-                or ("next_states" in state) != (self.config.objective == "q-target")):
+                or ("next_states" in state) != self.objective.keeps_next_state):
             raise ValueError("the checkpoint is of another network or replay buffer")
         self._model.set_weights(weights)
         for variable, value in zip(variables, state["optimizer"], strict=True):
@@ -341,56 +320,3 @@ class SafeTailLearner:
 
         return load_learner(path, training=training)
 
-
-def target_vector(action_index: int, reward: float, n_servers: int) -> np.ndarray:
-    """The §III training target V^t for one (action, reward) pair.
-
-    * reward = 0: one-hot on ``action_index``.
-    * reward < 0: with N = 2^n - 1, every action whose subset is contained in the chosen
-      subset (the chosen action included) gets max(0, 1/N + reward); the remaining mass
-      1 - Σ(those) is spread equally over all the other actions.
-
-    Edge cases (the paper is silent):
-
-    * The chosen subset is the full set: every action is one of its subsets, so no "other"
-      entry exists. All entries then hold the same value and the remaining mass is spread
-      equally over all of them, i.e. the vector is uniform, 1/N each.
-    * The remaining mass can never be negative: for reward <= 0 each adjusted entry is at most
-      1/N and there are at most N of them. Positive rewards (which Eq. 5 never produces) are
-      rejected instead of being given a meaning.
-
-    Args:
-        action_index: The chosen action, 0..2^n - 2.
-        reward: The Eq. 5 reward of that action, finite and <= 0.
-        n_servers: n, 1..10.
-
-    Returns:
-        float64 array of shape (2^n - 1,), non-negative, summing to 1 (up to float rounding).
-
-    Raises:
-        ValueError: bad ``n_servers`` or ``action_index``, or a positive / non-finite reward.
-    """
-    n_total = n_actions(n_servers)
-    if isinstance(action_index, bool) or not isinstance(action_index, int | np.integer):
-        raise ValueError(f"action_index must be an integer, got {action_index!r}")
-    if not 0 <= action_index < n_total:
-        raise ValueError(
-            f"action_index must be in 0..{n_total - 1} for n_servers={n_servers}, got {action_index}"
-        )
-    if not math.isfinite(reward) or reward > 0.0:
-        raise ValueError(f"reward must be finite and <= 0 (Eq. 5), got {reward!r}")
-    vector = np.empty(n_total, dtype=np.float64)
-    if reward == 0.0:
-        vector.fill(0.0)
-        vector[action_index] = 1.0
-        return vector
-    contained = subset_matrix(n_servers)[action_index]
-    n_contained = int(np.count_nonzero(contained))
-    adjusted = max(0.0, 1.0 / n_total + reward)
-    n_other = n_total - n_contained
-    if n_other == 0:
-        vector.fill(1.0 / n_total)
-    else:
-        vector.fill((1.0 - n_contained * adjusted) / n_other)
-        vector[contained] = adjusted
-    return vector

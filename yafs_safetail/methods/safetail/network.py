@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from yafs_safetail.methods.objectives import Objective, objective_named
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 
@@ -33,14 +34,15 @@ def build_network(
     """Build and compile the policy FNN.
 
     ``state_dim`` inputs, one ReLU Dense layer per entry of ``config.hidden_widths``, a Dense
-    layer over ``n_actions`` and Adam(``config.learning_rate``). With the ``"target-vector"``
-    objective (§III) the last layer is a softmax fitted by categorical cross-entropy; with
-    ``"value"`` it is linear, each output the expected value of what an action is given to
-    learn, fitted by :func:`masked_squared_error` (only the action taken has a target).
+    layer over ``n_actions`` and Adam(``config.learning_rate``). The objective gives the last
+    layer's activation and the loss (``Objective.output_activation``, ``compile_loss``): §III's
+    target vector a softmax fitted by categorical cross-entropy; ``"value"`` a linear layer, each
+    output the expected value of what an action is given to learn, fitted by
+    :func:`masked_squared_error` (only the action taken has a target).
     Each layer's Glorot-uniform initializer gets its own seed derived from ``init_seed``, so
     the initial weights do not depend on any global random state.
 
-    With ``config.n_networks`` = K > 1 (value objective only) the model holds K such networks
+    With ``config.n_networks`` = K > 1 (an objective that averages networks) the model holds K such networks
     side by side on the same input (layers ``net<j>_hidden<k>``, ``net<j>_actions``), each
     with its own initial weights, and outputs their K·``n_actions`` predictions concatenated
     (``actions``): one optimizer and one training call fit them all, each on its own error
@@ -54,7 +56,7 @@ def build_network(
     n_networks = config.n_networks
     n_layers = len(config.hidden_widths) + 1
     layer_seeds = np.random.SeedSequence(init_seed).generate_state(n_networks * n_layers)
-    value = config.objective == "value"
+    objective = config.learning_objective
 
     def dense_stack(prefix: str, seeds: np.ndarray) -> list[Any]:
         stack = [
@@ -69,7 +71,7 @@ def build_network(
         stack.append(
             keras.layers.Dense(
                 n_actions,
-                activation="linear" if value else "softmax",
+                activation=objective.output_activation,
                 kernel_initializer=keras.initializers.GlorotUniform(seed=int(seeds[-1])),
                 name=f"{prefix}actions",
             )
@@ -95,7 +97,7 @@ def build_network(
     # on the plain, op-deterministic kernels.
     model.compile(
         optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate, name="adam"),
-        loss=masked_squared_error() if value else "categorical_crossentropy",
+        loss=objective.compile_loss(),
         jit_compile=False,
     )
     # Build Adam's slots now so that a policy saved before its first round reloads cleanly.
@@ -123,20 +125,20 @@ def masked_squared_error() -> Any:
     return loss
 
 
-def make_round_updates(model: Any, objective: str = "target-vector", jit_compile: bool = False) -> Any:
+def make_round_updates(model: Any, objective: Objective | str = "target-vector", jit_compile: bool = False) -> Any:
     """A function running a whole training round of minibatch Adam updates in one TensorFlow
     graph call.
 
     ``update(states, targets, batches)`` makes one update per row of ``batches`` (an integer
     array of shape (updates, batch size) indexing ``states`` and ``targets``), in order, with
-    the objective's loss (the one :func:`build_network` compiles) and the model's optimizer,
+    the objective's loss (an :class:`~yafs_safetail.methods.objectives.Objective` or its
+    name; the one :func:`build_network` compiles) and the model's optimizer,
     and returns the mean loss. One graph call per round instead of one Keras call per
     minibatch: Keras's per-call overhead (milliseconds) is many times the arithmetic of this
     small network. ``jit_compile=True`` compiles the round with XLA: about a third faster, but
     the trained weights differ in their last bits, and so would every results file
     (``benchmarks/bench_training_round.py``); runs never use it.
     """
-    import keras
     import tensorflow as tf
 
     # Every learner traces its own round function; a process that builds several learners (a
@@ -144,7 +146,7 @@ def make_round_updates(model: Any, objective: str = "target-vector", jit_compile
     # is expected here and says nothing about the run.
     tf.get_logger().setLevel("ERROR")
     # The same loss build_network compiles the model with.
-    loss_fn = masked_squared_error() if objective == "value" else keras.losses.CategoricalCrossentropy()
+    loss_fn = (objective_named(objective) if isinstance(objective, str) else objective).round_loss()
     optimizer = model.optimizer
     variables = model.trainable_variables
 

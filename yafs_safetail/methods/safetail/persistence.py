@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from yafs_safetail.methods.safetail.learner import SafeTailLearner
-from yafs_safetail.methods.safetail.network import fast_forward, masked_squared_error
+from yafs_safetail.methods.safetail.network import fast_forward
 from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 #: A run's saved SafeTail in its results folder (``SafeTailPolicy.policy_file``); the sidecar
@@ -172,8 +172,8 @@ def load_learner(path: str | Path, *, training: bool = False) -> SafeTailLearner
         explore_state, shuffle_state = info["explore_rng"], info["shuffle_rng"]
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise PolicyFileError(f"{sidecar_path}: malformed sidecar: {exc}") from exc
-    if config.objective == "value":
-        masked_squared_error()  # registers the loss the network was compiled with
+    # Registers a custom loss (the value objective's) the network was compiled with.
+    config.learning_objective.compile_loss()
     try:
         model = keras.models.load_model(path, safe_mode=True)
     except (ValueError, OSError) as exc:

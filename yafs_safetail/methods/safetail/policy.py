@@ -17,6 +17,7 @@ from yafs_safetail.defaults import SAFETAIL_DISPATCH as SAFETAIL_DISPATCH
 from yafs_safetail.edge.failures import END_REPLY
 from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.learning import LearningPolicy
+from yafs_safetail.methods.objectives import objectives_bringing
 from yafs_safetail.methods.policy import PolicyError
 from yafs_safetail.methods.safetail.persistence import POLICY_FILE
 from yafs_safetail.methods.safetail.reward import (
@@ -66,7 +67,8 @@ class SafeTailPolicy(LearningPolicy):
         training: explore and learn (the training phase) or act greedily and frozen (testing).
         reward_name: the reward of :data:`~yafs_safetail.methods.safetail.reward.REWARDS`
             (``"paper"``, Eq. 5, everywhere but the contention world's variants;
-            ``"latency-cost"`` needs a learner with the ``"value"`` objective).
+            ``"latency-cost"`` needs a learner whose objective brings it, ``"value"``: its
+            ``own_reward``).
         dispatch: how the contention world sends the chosen subset: ``"all"`` (every copy at
             once, the paper) or ``"tied"`` (the copies cancel each other once one starts
             running, as :class:`~yafs_safetail.methods.hedging.Tied`; contention world only).
@@ -94,8 +96,9 @@ class SafeTailPolicy(LearningPolicy):
         self.training = training
         if reward_name not in REWARD_NAMES:
             raise PolicyError(f"SafeTail: unknown reward {reward_name!r}; valid: {', '.join(REWARD_NAMES)}")
-        if reward_name == "latency-cost" and learner.config.objective != "value":
-            raise PolicyError("SafeTail: the latency-cost reward needs a learner with the value objective")
+        if reward_name not in REWARDS and learner.objective.own_reward != reward_name:
+            owners = " or ".join(objectives_bringing(reward_name))
+            raise PolicyError(f"SafeTail: the {reward_name} reward needs a learner with the {owners} objective")
         self._reward = REWARDS.get(reward_name)  # None: the latency-cost reward
         if dispatch not in SAFETAIL_DISPATCH:
             raise PolicyError(f"SafeTail: unknown dispatch {dispatch!r}; valid: {', '.join(SAFETAIL_DISPATCH)}")
@@ -183,11 +186,12 @@ class SafeTailPolicy(LearningPolicy):
         if learner.n_servers != self.n_servers:
             raise PolicyError(f"SafeTail: {path} is for {learner.n_servers} servers, the topology "
                               f"has {self.n_servers}")
-        if (learner.config.objective == "value") != (self._reward is None):
+        own_reward = learner.objective.own_reward
+        if (own_reward is not None) != (self._reward is None):
             # A value network predicts latency scores and §III's predicts action probabilities:
             # each is evaluated with the reward it was trained with (the value learner's own, or
             # Eq. 5), else its greedy choices would not be the ones it was trained to make.
-            self._reward = None if learner.config.objective == "value" else REWARDS["paper"]
+            self._reward = None if own_reward is not None else REWARDS["paper"]
         self.learner = learner
         self.loaded_from = Path(path)
 

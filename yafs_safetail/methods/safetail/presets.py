@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from yafs_safetail.defaults import OBJECTIVES as OBJECTIVES
 from yafs_safetail.defaults import PRESET_NAMES as PRESET_NAMES
 from yafs_safetail.edge import published
+from yafs_safetail.methods.objectives import Q_TARGET_DISCOUNT as Q_TARGET_DISCOUNT
+from yafs_safetail.methods.objectives import Objective, objective_named, objective_names
 
 #: The world each preset runs in (``yafs_safetail.edge.calibration``): ``paper-literal`` keeps the
 #: first release's world so that its results stay as they were.
@@ -50,8 +52,6 @@ ORIGINAL_REPLAY_TUPLES = 2500
 # paper: minibatches per training round (one round every κ steps) and their size.
 PAPER_UPDATES_PER_ROUND = 64
 PAPER_BATCH_SIZE = 32
-#: q-target: the discount on the next state's best output (the original code's 0.95, facts.md).
-Q_TARGET_DISCOUNT = 0.95
 #: paper: Adam's learning rate per use case, chosen by docs/calibration.md's rule 3 (the rate of a
 #: log grid whose greedy policy earns the highest mean Eq. 5 test reward on the learner-calibration
 #: seeds; ``python experiments/choose_learning_rate.py``, rerun 2026-11-28 with §III's target
@@ -91,10 +91,11 @@ class LearnerConfig:
             the stored tuples; ``"uniform"``: a round makes ``updates_per_round`` Adam updates,
             each on ``batch_size`` tuples drawn at random (without replacement) from the memory.
         updates_per_round: Adam updates per round for ``replay_sampling="uniform"``.
-        objective: one of :data:`OBJECTIVES`: every preset trains on §III's ``"target-vector"``
+        objective: an objective's name (``objectives.objective_names()``; the project's are
+            :data:`OBJECTIVES`): every preset trains on §III's ``"target-vector"``
             (the paper's text specifies the method: the spec owner's decision of 2026-11-28);
             ``"q-target"`` is the original code's targets (D18), by name only.
-        n_networks: With the ``"value"`` objective, how many networks (same layers, their own
+        n_networks: With an objective that averages networks (``"value"``), how many networks (same layers, their own
             initial weights, trained on the same minibatches) predict each action's value;
             decisions use the mean of their predictions, meant to vary less from seed to seed
             than one network's (D13 measures it). The §III objective has one network.
@@ -166,11 +167,11 @@ class LearnerConfig:
                 f"LearnerConfig.replay_sampling must be one of {REPLAY_SAMPLING}, got "
                 f"{self.replay_sampling!r}"
             )
-        if self.objective not in OBJECTIVES:
+        if self.objective not in objective_names():
             raise ValueError(
-                f"LearnerConfig.objective must be one of {OBJECTIVES}, got {self.objective!r}"
+                f"LearnerConfig.objective must be one of {objective_names()}, got {self.objective!r}"
             )
-        if self.n_networks > 1 and self.objective != "value":
+        if self.n_networks > 1 and not self.learning_objective.averages_networks:
             raise ValueError(
                 f"LearnerConfig.n_networks ({self.n_networks}) must be 1 with the {self.objective!r} "
                 "objective (only value networks are averaged)"
@@ -185,6 +186,11 @@ class LearnerConfig:
                 f"LearnerConfig.replay_capacity ({self.replay_capacity}) must be >= kappa "
                 f"({self.kappa})"
             )
+
+    @property
+    def learning_objective(self) -> Objective:
+        """The objective :attr:`objective` names (``methods.objectives``)."""
+        return objective_named(self.objective)
 
     @property
     def n_training_rounds(self) -> int:
