@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -51,7 +52,7 @@ def add_world_options(parser: argparse.ArgumentParser) -> None:
 
 def add_output_options(parser: argparse.ArgumentParser, config_class: type[ContentionSweep]) -> None:
     """The methods, where the sweep goes and how it runs (every sweep's last options)."""
-    add_options(parser, config_class, only=("methods", "safetail"))
+    add_options(parser, config_class, only=("methods", "user_methods", "safetail"))
     add_plumbing(parser, "--out", type=Path, required=True, help="new output folder")
     add_plumbing(parser, "--overwrite", action="store_true",
                  help="replace point folders there that hold another configuration's results")
@@ -82,14 +83,50 @@ def check_mobility(base: ContentionConfig) -> None:
 
 
 def check_methods(config: ContentionSweep) -> None:
-    """The methods' names, which parsing alone cannot check, as a one-line error before anything
-    runs; and --value-networks without the value learner."""
+    """The methods' names, which parsing alone cannot check, and each user's policy (``--method``)
+    on its first request, as a one-line error before any point runs."""
     import numpy as np
 
     from yafs_safetail.methods.registry import make_baseline
 
     for name in config.methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
+    rows = [variant.name for variant in config.safetails] + list(config.methods)
+    for method in config.user_methods:
+        if method.name in rows:
+            raise ContentionError(f"--method {method.spec}: the name {method.name!r} is taken by another "
+                                  "method of the sweep; name it with NAME=")
+        rows.append(method.name)
+    check_user_methods(config)
+
+
+def check_user_methods(config: ContentionSweep) -> None:
+    """Ask each ``--method`` policy, built afresh, for the servers of the first point's first
+    request (every server idle), so that one that cannot choose fails now, in one line
+    (PolicyError), before any point is computed or SafeTail trained; as a run checks its own.
+
+    Nothing a point uses is touched: the instance is a throwaway one with its own twin of the
+    method's generator, and the world is one drawn for the check alone.
+    """
+    if not config.user_methods:
+        return
+    import dataclasses
+
+    import numpy as np
+
+    from yafs_safetail.contention.run import DISPATCH
+    from yafs_safetail.contention.world import ContentionWorld
+    from yafs_safetail.methods.registry import method_rng
+
+    world = ContentionWorld(config.point_world(config.points[0]))
+    first = world.observation(0, [0] * world.n_servers)
+    for method in config.user_methods:
+        # Arrays of its own for each policy: one may write into what it is given.
+        copies: dict[str, Any] = {item.name: np.array(value) for item in dataclasses.fields(first)
+                                  if isinstance(value := getattr(first, item.name), np.ndarray)}
+        observation = dataclasses.replace(first, **copies)
+        method.check_first_choice(world.n_servers, method_rng(config.base.seed, method.name), observation,
+                                  DISPATCH, first="the sweep's first request")
 
 
 def check_value_networks(args: argparse.Namespace) -> None:
@@ -134,15 +171,37 @@ def run_points(out: Path, specs: Mapping[int, Sequence[RunSpec]], args: argparse
                command: str) -> dict[int, pd.DataFrame] | None:
     """Every point of every seed's sweep as one campaign into ``out`` (each point cached by its
     configuration's hash, resumable, on any engine); each seed's rows read back from its points'
-    folders, in point order. None when a point failed (the campaign has said which)."""
+    folders, in point order. None when a point failed (the campaign has said which and why: a
+    user's policy that fails mid-point in one line naming it); then no table is written, and a
+    campaign that finished no point in a folder it made leaves nothing behind."""
     import pandas as pd
 
-    from yafs_safetail.runs.campaign import run_campaign
+    from yafs_safetail.runs.campaign import (
+        DONE,
+        EARLIER,
+        LOCK_FILE,
+        LOG_FILE,
+        STATE_FILE,
+        run_campaign,
+    )
     from yafs_safetail.runs.output import SWEEP_FILE
 
+    existed = out.exists()
+    fresh = not existed or not any(out.iterdir())
     result = run_campaign([spec for seed_specs in specs.values() for spec in seed_specs], out, command=command,
                           **engine_keywords(args))
     if result.failed:
+        kept = "finished points are kept"
+        if fresh and not any(state.status in (DONE, EARLIER) for state in result.runs):
+            # Nothing to resume: the campaign's own files go too (a point's folder is staged, and
+            # a failed one leaves none).
+            for name in (STATE_FILE, LOG_FILE, LOCK_FILE):
+                (out / name).unlink(missing_ok=True)
+            if not existed and not any(out.iterdir()):
+                out.rmdir()
+            kept = "nothing was kept"
+        print(f"error: {result.failed} point(s) failed (see above); no tables written; rerun the same command "
+              f"to retry them ({kept})", file=sys.stderr)
         return None
     return {seed: pd.concat([pd.read_csv(out / spec.name / SWEEP_FILE) for spec in seed_specs], ignore_index=True)
             for seed, seed_specs in specs.items()}
@@ -164,7 +223,10 @@ def sweep_run_json(config: ContentionSweep, command: str, kind: str, specs: Sequ
         "steps_scale": config.steps_scale, "target": config.target,
         "safetails": [asdict(variant) for variant in config.safetails],
         "servers": servers_word(base), "cancel": base.cancel, "background": base.background, "links": base.links,
-        "methods": list(config.methods), "test_requests": config.test_requests,
+        "methods": list(config.methods),
+        # Only when given (the users' policies by their specs, as each point records them).
+        **({"user_methods": [method.spec for method in config.user_methods]} if config.user_methods else {}),
+        "test_requests": config.test_requests,
         "topology": str(base.topology),
         "placement": str(base.placement), "user_conditions": str(base.user_conditions),
         **base.mobility_settings(),  # nothing when the users stay put

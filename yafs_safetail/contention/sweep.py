@@ -12,7 +12,10 @@ every other method runs on the test world only. By default two SafeTails run sid
 Eq. 5 against τ, copies sent all at once), and ``SafeTail-CA``, the contention-aware one (the
 value learner that prices each copy by the jobs it joins, tied copies; docs/deviations.md D13).
 All methods of a point see the same arrivals, per-request draws and outages (common random
-numbers). One row per (point, method) goes to the point's ``sweep.csv``.
+numbers). Users' own policies (``--method FILE.py:CLASS``) run after the built-in methods, each
+from its own generator (``methods.registry.method_rng``: the seed and its name); one that learns
+(a ``LearningPolicy``) is first trained on a training world of its own, on the paper SafeTail's
+budget (or ``--preset``'s). One row per (point, method) goes to the point's ``sweep.csv``.
 """
 
 from __future__ import annotations
@@ -23,12 +26,14 @@ from typing import Any
 
 import pandas as pd
 
+from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.contention.run import run_policy, summarise
 from yafs_safetail.contention.sweep_config import ContentionSweep
-from yafs_safetail.contention.sweep_learners import SafeTailVariant
+from yafs_safetail.contention.sweep_learners import SafeTailVariant, training_requests
 from yafs_safetail.contention.world import ContentionWorld
+from yafs_safetail.methods.learning import TEST_PHASE, TRAIN_PHASE
 from yafs_safetail.methods.policy import Policy
-from yafs_safetail.methods.registry import make_baseline, method_rng
+from yafs_safetail.methods.registry import UserMethod, make_baseline, method_rng
 from yafs_safetail.methods.safetail.assemble import make_safetail
 from yafs_safetail.methods.safetail.policy import SafeTailPolicy
 from yafs_safetail.methods.safetail.presets import get_preset
@@ -42,6 +47,27 @@ def _safetail_policy(world: ContentionWorld, variant: SafeTailVariant, seed: int
                      objective=variant.learner, n_networks=variant.n_networks)
     return make_safetail(world.use_case, world.scenario, config, seed, metadata={"world": "contention"},
                          reward=variant.reward, dispatch=variant.dispatch, name=variant.name)
+
+
+def _user_policy(config: ContentionSweep, value: float, method: UserMethod, test_config: ContentionConfig,
+                 world: ContentionWorld, log: Callable[[str], None]) -> tuple[Policy, int]:
+    """A user's policy at one point, with the requests it trained on: one that learns is trained
+    first on a training world of its own (the same requests a SafeTail's has, read afresh) and
+    tested in its test phase, as a run does."""
+    rng = method_rng(config.base.seed, method.name)
+    if not method.learns:
+        return method.make(world.n_servers, rng), 0
+    policy = method.make_learner(world.n_servers, rng)
+    n_train = training_requests(config.preset or "paper", config.base.use_case, config.steps_scale)
+    train_world = ContentionWorld(replace(test_config, phase="train", n_requests=n_train), world.inputs,
+                                  world.scenario)
+    policy.begin_phase(TRAIN_PHASE)
+    trained = run_policy(train_world, policy, target=config.target)
+    summary = policy.end_training()
+    log(f"{config.axis.label} {value:g}: {method.name} trained on {n_train} requests in "
+        f"{trained.wall_s:.1f} s{f' ({summary})' if summary else ''}")
+    policy.begin_phase(TEST_PHASE)
+    return policy, n_train
 
 
 def _row_line(row: Mapping[str, Any]) -> str:
@@ -78,6 +104,8 @@ def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line:
         for name in config.methods:
             policies.append((make_baseline(name, test_world.n_servers, method_rng(config.base.seed, name),
                                            test_world.settings.baseline_reading), 0))
+        for method in config.user_methods:
+            policies.append(_user_policy(config, value, method, test_config, test_world, log))
         for policy, train_requests in policies:
             run = run_policy(test_world, policy, target=config.target)
             row = {**config.point_columns(value, test_world), **summarise(run), "train_requests": train_requests}

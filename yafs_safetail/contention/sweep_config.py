@@ -52,6 +52,7 @@ from yafs_safetail.settings.experiment import FailuresAndPower, LearnerOverrides
 
 if TYPE_CHECKING:
     from yafs_safetail.contention.world import ContentionWorld
+    from yafs_safetail.methods.registry import UserMethod
 
 #: Every fixed method of the load sweep (the SafeTails are added unless left out).
 DEFAULT_SWEEP_METHODS: tuple[str, ...] = (
@@ -80,6 +81,25 @@ FAILURE_SWEEP_COLUMNS: tuple[str, ...] = ("failure_level", "load", "offered_load
 #: Oracle's five copies per request leave its queues stable (they grow without bound from 0.3 on,
 #: docs/contention.md), so that a lost request measures failures, not Oracle's own overload.
 DEFAULT_FAILURE_LOAD = 0.1
+
+
+def _absolute_spec(spec: str) -> str:
+    """A user's ``[NAME=]FILE.py:CLASS`` with its file's path absolute, as a point records every
+    input file (a ``module:Class`` spec as it is)."""
+    name, sep, target = spec.partition("=")
+    if not sep or ":" in name or "/" in name:  # no NAME= prefix (as methods.registry reads it)
+        name, sep, target = "", "", spec
+    source, _, class_name = target.rpartition(":")
+    if not (source.endswith(".py") or "/" in source or "\\" in source):
+        return spec
+    return f"{name}{sep}{Path(source).resolve()}:{class_name}"
+
+
+def _user_methods(specs: Any) -> tuple[UserMethod, ...]:
+    """The users' policies a point's settings record (each loaded again in the point's process)."""
+    from yafs_safetail.methods.registry import UserMethod  # NumPy: only when a point is built
+
+    return tuple(UserMethod(str(spec)) for spec in specs)
 
 
 @dataclass(frozen=True)
@@ -129,6 +149,8 @@ class ContentionSweep:
     base: ContentionConfig
     methods: tuple[str, ...] = setting(DEFAULT_SWEEP_METHODS, "fixed methods, comma-separated (default: all)",
                                        check=METHOD_NAMES)
+    # A run's --method: users' own policies, each a row beside the built-in methods.
+    user_methods: tuple[UserMethod, ...] = same_as(Task, "methods")
     safetail: bool = setting(True, "fixed methods only", check=BOOLEAN, flag="--no-safetail",
                              action="store_false")
     preset: str | None = setting(None, "every SafeTail's preset (default: paper for SafeTail, tuned for "
@@ -245,6 +267,9 @@ class ContentionSweep:
             "target": self.target, "learner": list(self.objectives), "dispatch": self.dispatch,
             "test_requests": self.test_requests, "value_networks": self.networks_averaged,
             **base.world_overrides(), **base.mobility_settings(),
+            # Only when given, so that a sweep without them keeps its points' ids.
+            **({"user_methods": [_absolute_spec(method.spec) for method in self.user_methods]}
+               if self.user_methods else {}),
         }
 
     @staticmethod
@@ -263,7 +288,7 @@ class ContentionSweep:
                     preset=settings["preset"], steps_scale=settings["steps_scale"], reward=settings["reward"],
                     target=settings["target"],
                     objectives=(learners,) if isinstance(learners, str) else tuple(learners),
-                    dispatch=settings["dispatch"],
+                    dispatch=settings["dispatch"], user_methods=_user_methods(settings.get("user_methods", ())),
                     # Absent from the folders of earlier versions, where it followed steps_scale.
                     test_requests_per_load=settings.get("test_requests"),
                     n_networks=settings.get("value_networks", 1))

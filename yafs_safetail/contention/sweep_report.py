@@ -17,7 +17,13 @@ import numpy as np
 import pandas as pd
 
 from yafs_safetail.contention.sweep_learners import SAFETAIL_CA, SAFETAIL_LEARNERS, SAFETAIL_Q
-from yafs_safetail.methods.registry import ORACLE, SAFETAIL, parse_method
+from yafs_safetail.methods.registry import (
+    BASELINE_FAMILIES,
+    CONTENTION_BASELINES,
+    ORACLE,
+    SAFETAIL,
+    parse_method,
+)
 from yafs_safetail.results.files import write_text_atomic
 
 
@@ -27,9 +33,21 @@ def safetail_names(frame: pd.DataFrame) -> list[str]:
     return [name for name in SAFETAIL_LEARNERS.values() if name in present]
 
 
+def is_fixed(method: str) -> bool:
+    """Whether ``method`` is one of the built-in fixed methods (Oracle, the x-baselines, Hedge,
+    Tied) the goals compare each SafeTail with; a user's own policy (``--method``) is not."""
+    family, level = parse_method(method)
+    return method == ORACLE or method in CONTENTION_BASELINES or (family in BASELINE_FAMILIES and level is not None)
+
+
+def fixed_methods(frame: pd.DataFrame) -> list[str]:
+    """The built-in fixed methods with rows in ``frame``, in its order."""
+    return [name for name in dict.fromkeys(frame["method"]) if is_fixed(name)]
+
+
 def best_fixed_p99(frame: pd.DataFrame, load: float) -> tuple[str, float]:
-    """The fixed method (no SafeTail) with the lowest p99 at ``load``."""
-    rows = frame[(frame["load"] == load) & ~frame["method"].isin(list(SAFETAIL_LEARNERS.values()))]
+    """The built-in fixed method (no SafeTail, no user's policy) with the lowest p99 at ``load``."""
+    rows = frame[(frame["load"] == load) & frame["method"].isin(fixed_methods(frame))]
     best = rows.loc[rows["p99_s"].idxmin()]
     return str(best["method"]), float(best["p99_s"])
 
@@ -53,7 +71,7 @@ def sweep_checks(frame: pd.DataFrame) -> list[tuple[str, bool, str]]:
             worse_at = [load for load in loads if p99("Oracle", load) > min(p99(m, load) for m in singles)]
             checks.append(("Oracle worse than single dispatch beyond some load", bool(worse_at),
                            f"from load {worse_at[0]:g}" if worse_at else "never"))
-    has_fixed = bool(set(frame["method"]) - set(SAFETAIL_LEARNERS.values()))
+    has_fixed = bool(fixed_methods(frame))
     for name in safetail_names(frame):
         if len(loads) > 1:  # (one load says nothing of how the copies follow the load)
             copies = [float(frame[(frame["method"] == name) & (frame["load"] == load)]["mean_n_selected"].iloc[0])
@@ -81,7 +99,7 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
     lines: list[str] = []
     names = [name for name in SAFETAIL_LEARNERS.values()
              if all(name in set(frame["method"]) for frame in frames.values())]
-    if not all(set(frame["method"]) - set(SAFETAIL_LEARNERS.values()) for frame in frames.values()):
+    if not all(fixed_methods(frame) for frame in frames.values()):
         names = []  # (no fixed method to compare with)
     for name in names:
         loads = sorted(frames[seeds[0]]["load"].unique())
@@ -211,7 +229,7 @@ def _method_tables(frame: pd.DataFrame, x: str,
 def glance_markdown(frame: pd.DataFrame) -> str:
     """Every method's p99 and copies per request, one row per load (the SafeTails first, the best
     fixed method's p99 in bold): what sweep.png draws, for the console and SWEEP.md."""
-    has_fixed = bool(set(frame["method"]) - set(safetail_names(frame)))
+    has_fixed = bool(fixed_methods(frame))
     best = {load: best_fixed_p99(frame, load)[0] for load in frame["load"].unique()} if has_fixed else {}
 
     def p99(at: pd.DataFrame, method: str, load: float) -> str:

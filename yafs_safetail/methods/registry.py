@@ -183,7 +183,8 @@ class UserMethod:
         return policy
 
     def check_first_choice(self, n_servers: int, rng: np.random.Generator,
-                           observation: Observation, support: DispatchSupport) -> None:
+                           observation: Observation, support: DispatchSupport,
+                           first: str = "the run's first request") -> None:
         """Build a throwaway instance and ask it for one request's servers, before the run.
 
         A policy that cannot choose (it returns nothing, a server that does not exist, a server
@@ -198,6 +199,8 @@ class UserMethod:
             observation: ω^t of the run's first request; the policy may keep or change it, so
                 it must not share arrays with the run's world.
             support: the dispatch modes the run's world runs (:func:`check_dispatch`).
+            first: which request ``observation`` is, as the error says it (a sweep's: "the
+                sweep's first request").
 
         Raises:
             PolicyError: one line naming the policy's file and class and what is wrong.
@@ -210,14 +213,14 @@ class UserMethod:
             raise PolicyError(f"{where}: {str(error).removeprefix(f'{policy.name}: ')}") from None
         if isinstance(policy, LearningPolicy):
             policy.begin_phase(TRAIN_PHASE)
-        first = f"{where}: on the run's first request, {self.policy_class.__name__}.choose()"
+        asked = f"{where}: on {first}, {self.policy_class.__name__}.choose()"
         try:
             chosen = policy.choose(observation if policy.observes else None)
         except Exception as error:
-            raise PolicyError(f"{first} raised {raised_where(error, self.policy_class)}") from None
+            raise PolicyError(f"{asked} raised {raised_where(error, self.policy_class)}") from None
         _, problem = choice_problem(chosen, n_servers)
         if problem:
-            raise PolicyError(f"{first} returned {chosen!r}: {problem}")
+            raise PolicyError(f"{asked} returned {chosen!r}: {problem}")
 
     @property
     def learns(self) -> bool:

@@ -26,6 +26,18 @@ from yafs_safetail.runs.output import StagedOutput
 log = logging.getLogger(__name__)
 
 
+def method_identity(spec: str) -> dict[str, str]:
+    """A user's policy in a point's identity: its name, class and file (place and contents, as
+    every input file's), or its module."""
+    name, sep, target = spec.partition("=")
+    if not sep or ":" in name or "/" in name:  # no NAME= prefix (as methods.registry reads it)
+        name, target = "", spec
+    source, _, class_name = target.rpartition(":")
+    if source.endswith(".py") or "/" in source or "\\" in source:
+        return {"name": name, "class": class_name, **file_identity(Path(source))}
+    return {"name": name, "class": class_name, "module": source}
+
+
 def point_run_id(settings: Mapping[str, Any], kind: str = LOAD_POINT) -> str:
     """The short hash of everything a sweep point's rows depend on (its kind and settings, the
     input files' contents, the code version)."""
@@ -36,6 +48,8 @@ def point_run_id(settings: Mapping[str, Any], kind: str = LOAD_POINT) -> str:
         identity["user_conditions"] = file_identity(Path(settings["user_conditions"]))
     if settings.get("route") is not None:  # the route's contents, not only its name
         identity["route"] = file_identity(Path(settings["route"]))
+    if settings.get("user_methods"):  # each user's policy file's contents too
+        identity["user_methods"] = [method_identity(spec) for spec in settings["user_methods"]]
     canonical = json.dumps(identity, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
 
