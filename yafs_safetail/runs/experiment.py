@@ -153,6 +153,14 @@ def _check(config: ExperimentConfig) -> _Inputs:
     )
 
 
+def check_user_policies(config: ExperimentConfig) -> None:
+    """Each ``--method`` policy of ``config`` asked for its test phase's first request, as the
+    run itself asks (PolicyError, one line): what a command running many such runs as a campaign
+    (the mobility sweep) checks once before the campaign starts. Draws the test world only."""
+    if config.methods:
+        _check_user_policies(config, world_recipe(config).make_world(TEST, config.seed))
+
+
 def _check_user_policies(config: ExperimentConfig, world: EdgeWorld) -> None:
     """Ask each ``--method`` policy, built afresh, for the servers of the test phase's first
     request, so that one that cannot choose fails now (PolicyError), before any training.
