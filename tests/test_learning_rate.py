@@ -31,6 +31,12 @@ def test_the_highest_mean_reward_wins_and_ties_go_to_the_smaller_rate():
     assert chosen == {1: 1e-3, 2: 1e-5}
 
 
+def test_the_zero_share_criterion_takes_the_largest_share_of_zero_rewards():
+    table = rewards({(3, 1e-5): [-0.001, -0.001], (3, 1e-3): [-0.01, -0.01]})
+    table["zero_share"] = [0.5, 0.6, 0.9, 0.8]
+    assert choose(table) == {3: 1e-5} and choose(table, "zero_share") == {3: 1e-3}
+
+
 def test_the_shipped_rates_are_from_the_grid_and_used_by_paper_only():
     for use_case, rate in PAPER_LEARNING_RATES.items():
         assert rate in RATE_GRID
@@ -49,6 +55,7 @@ def test_script_on_a_tiny_budget_scores_every_rate(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     table = pd.read_csv(out / "learning_rates.csv")
     assert sorted(table["rate"]) == [1e-5, 1e-3] and table["reward"].notna().all()
+    assert table["zero_share"].between(0, 1).all() and table["access_rate"].between(0.19, 1.0).all()
     document = json.loads((out / "learning_rates.json").read_text())
     assert document["learning_rates"] == {"1": choose(table)[1]}
     assert document["provenance"]["seeds"] == [1000]
@@ -56,7 +63,7 @@ def test_script_on_a_tiny_budget_scores_every_rate(tmp_path):
 
 
 def test_bad_arguments_are_one_line_errors(tmp_path):
-    for args in (("--uc", "4"), ("--seeds", "1,1"), ("--steps-scale", "0"), ("--workers", "x"),
+    for args in (("--uc", "4"), ("--seeds", "1,1"), ("--criterion", "median"), ("--steps-scale", "0"), ("--workers", "x"),
                  ("--rates", "1e-3,0"), ("--rates", "1e-3,1e-3")):
         done = subprocess.run([sys.executable, str(SCRIPT), *args, "--out", str(tmp_path / "x")],
                               capture_output=True, text=True, cwd=REPOSITORY, timeout=300)

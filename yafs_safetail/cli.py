@@ -93,7 +93,7 @@ class ArgumentParser(argparse.ArgumentParser):
 #: Options that are not settings: where a command writes, what it reads besides its settings and
 #: how many processes it uses, never what it computes. A setting's option comes from its
 #: declaration (``settings.options.add_options``), never from here (tests/test_option_sources.py).
-PLUMBING_FLAGS = ("--out", "--overwrite", "--grid", "--apply", "--workers")
+PLUMBING_FLAGS = ("--out", "--overwrite", "--grid", "--apply", "--workers", "--criterion")
 
 
 def add_plumbing(parser: argparse._ActionsContainer, flag: str, **keywords: Any) -> None:

@@ -49,6 +49,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_options(parser, ExperimentConfig, only=("steps_scale",),
                 steps_scale={"help": "fraction of the full budget (default 1: the rule as written)"})
     add_plumbing(parser, "--workers", type=positive_int, default=2, help="parallel runs (default 2)")
+    add_plumbing(parser, "--criterion", choices=("mean-reward", "zero-share"), default="mean-reward",
+                 help="what a rate is chosen by: mean-reward (the rule as written: the mean Eq. 5 test "
+                      "reward) or zero-share (the share of test rewards of exactly 0, what the paper's "
+                      "target vector trains toward; not the rule)")
     add_plumbing(parser, "--out", type=Path, default=Path("results/learning-rate"),
                  help="output folder (default results/learning-rate)")
     add_verbosity_options(parser)
@@ -65,7 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     seeds = tuple(seed_set("learner_calibration") if args.seeds is None else args.seeds)
     document = choose_learning_rates(LearningRateConfig(
         use_cases=tuple(args.uc), rates=tuple(args.rates), seeds=seeds, steps_scale=args.steps_scale,
-        workers=args.workers, out_dir=args.out, command=command))
+        workers=args.workers, out_dir=args.out, command=command, criterion=args.criterion))
     print_result(args, args.out, "".join(f"{line}\n" for line in main_rows(document))
                  + f"written: {args.out / 'learning_rates.json'}")
     return 0
