@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import re
 import sys
 from pathlib import Path
 
@@ -196,20 +197,39 @@ def test_missing_column_names_file_and_column(tmp_path):
 
 @pytest.mark.parametrize(
     ("value", "message"),
-    [(np.nan, "row 2: NaN/empty is not a finite number"), (-1.0, "row 2: -1 must be > 0"), ("fast", "row 2: 'fast'")],
+    [(np.nan, "NaN/empty is not a finite number"), (-1.0, "-1 must be > 0"), ("fast", "'fast'")],
 )
 def test_bad_bandwidth_value_names_column_and_row(tmp_path, value, message):
     frame = _bandwidth_frame().astype({"throughput_bps": object})
     frame.loc[1, "throughput_bps"] = value
     path = _write(tmp_path, "bandwidth.csv", frame)
-    with pytest.raises(TraceError, match=f"bandwidth.csv: column 'throughput_bps' {message}"):
+    # Data row 2 is the file's row 3, as a spreadsheet shows it (the header is row 1).
+    with pytest.raises(TraceError, match=re.escape(f"bandwidth.csv: row 3 (header = row 1), column 'throughput_bps': {message}")):
         load_bandwidth(path)
+
+
+@pytest.mark.parametrize(
+    ("lines", "message"),
+    [(["1,0.05", "2", "3,0.1"], "row 3 (header = row 1), column 'rtt_s': NaN/empty is not a finite number"),
+     (["1,0.05", "2,0.1,7", "3,0.1"], "row 3 (header = row 1): 3 values, the header has 2 columns"),
+     (["1,0.05", "", "3,0.1"], "row 3 (header = row 1), column 'condition': NaN/empty is not a finite number"),
+     (["1,0.05", "2,0.1", "3,-0.2"], "row 4 (header = row 1), column 'rtt_s': -0.2 must be > 0"),
+     (["1,0.05", "2,0.1", "3,slow"], "row 4 (header = row 1), column 'rtt_s': 'slow' is not a finite number")],
+)
+def test_bad_row_is_named_as_a_spreadsheet_shows_it(tmp_path, lines, message):
+    """A missing value, an extra one, a blank line, a negative or non-numeric time: one line
+    naming the file, the row (the header is row 1, as in a spreadsheet) and the column."""
+    path = tmp_path / "propagation.csv"
+    path.write_text("\n".join(["condition,rtt_s", *lines, "4,0.1", "5,0.1", "", ""]))
+    with pytest.raises(TraceError) as raised:
+        load_propagation(path)
+    assert str(raised.value) == f"{path}: {message}"
 
 
 def test_bandwidth_unknown_direction_and_missing_level(tmp_path):
     frame = _bandwidth_frame()
     frame.loc[2, "direction"] = "sideways"
-    with pytest.raises(TraceError, match="column 'direction' row 3: 'sideways'"):
+    with pytest.raises(TraceError, match=r"row 4 \(header = row 1\), column 'direction': 'sideways'"):
         load_bandwidth(_write(tmp_path, "bandwidth.csv", frame))
     frame = _bandwidth_frame()
     frame.loc[[2, 3], "contention_level"] = 2
@@ -226,7 +246,7 @@ def test_bandwidth_pool_lookup_errors(traces):
 
 def test_propagation_unknown_condition_in_file_and_lookup(tmp_path, traces):
     frame = pd.DataFrame({"condition": [1, 2, 3, 4, 5, 6], "rtt_s": [0.05] * 6})
-    with pytest.raises(TraceError, match=r"propagation.csv: column 'condition' row 6: 6 is not one of"):
+    with pytest.raises(TraceError, match=r"propagation.csv: row 7 \(header = row 1\), column 'condition': 6 is not one of"):
         load_propagation(_write(tmp_path, "propagation.csv", frame))
     frame = pd.DataFrame({"condition": [1, 2, 3, 4], "rtt_s": [0.05] * 4})
     with pytest.raises(TraceError, match="no rows for condition 5"):
@@ -243,11 +263,11 @@ def _compute_frame() -> pd.DataFrame:
 def test_compute_validation(tmp_path):
     frame = _compute_frame()
     frame.loc[0, "n_processes"] = 6
-    with pytest.raises(TraceError, match=r"compute_uc3.csv: column 'n_processes' row 1: 6 outside 1..5"):
+    with pytest.raises(TraceError, match=r"compute_uc3.csv: row 2 \(header = row 1\), column 'n_processes': 6 outside 1..5"):
         load_compute(_write(tmp_path, "compute_uc3.csv", frame), 3)
     frame = _compute_frame().astype({"n_processes": float})
     frame.loc[3, "n_processes"] = 2.5
-    with pytest.raises(TraceError, match="row 4: 2.5 is not an integer"):
+    with pytest.raises(TraceError, match=r"row 5 \(header = row 1\), column 'n_processes': 2.5 is not an integer"):
         load_compute(_write(tmp_path, "compute_uc3.csv", frame), 3)
     frame = _compute_frame()
     frame.loc[4, "n_processes"] = 1
@@ -255,7 +275,7 @@ def test_compute_validation(tmp_path):
         load_compute(_write(tmp_path, "compute_uc3.csv", frame), 3)
     frame = _compute_frame()
     frame.loc[2, "latency_s"] = 0.0
-    with pytest.raises(TraceError, match="column 'latency_s' row 3: 0 must be > 0"):
+    with pytest.raises(TraceError, match=r"row 4 \(header = row 1\), column 'latency_s': 0 must be > 0"):
         load_compute(_write(tmp_path, "compute_uc3.csv", frame), 3)
     with pytest.raises(TraceError, match="missing column 'width_px'"):
         load_compute(_write(tmp_path, "compute_uc3.csv", _compute_frame()), 1)
@@ -270,10 +290,10 @@ def test_load_trace_validation(tmp_path):
     frame = pd.DataFrame({"minute": [0, 1, 2], "device_0": [1, 2, 3], "device_1": [0, 0, 1]})
     assert load_load_trace(_write(tmp_path, "load.csv", frame)).users.shape == (3, 2)
     bad = frame.assign(minute=[0, 2, 1])
-    with pytest.raises(TraceError, match="column 'minute' row 2: 2, expected 1"):
+    with pytest.raises(TraceError, match=r"row 3 \(header = row 1\), column 'minute': 2, expected 1"):
         load_load_trace(_write(tmp_path, "load.csv", bad))
     bad = frame.assign(device_1=[0, -1, 1])
-    with pytest.raises(TraceError, match="column 'device_1' row 2: -1 must be >= 0"):
+    with pytest.raises(TraceError, match=r"row 3 \(header = row 1\), column 'device_1': -1 must be >= 0"):
         load_load_trace(_write(tmp_path, "load.csv", bad))
     with pytest.raises(TraceError, match="no 'device_N' columns"):
         load_load_trace(_write(tmp_path, "load.csv", frame[["minute"]]))

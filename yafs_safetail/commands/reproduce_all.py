@@ -96,8 +96,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                  help="output folder (default results/reproduce)")
     # The settings every run shares, each declared once in settings.experiment (its type, check and
     # default); the help says what they mean for the whole reproduction.
-    add_options(parser, ExperimentConfig, only=("steps_scale", "target_compute"),
+    add_options(parser, ExperimentConfig, only=("steps_scale", "target_compute", "traces_dir"),
                 steps_scale={"help": "fraction of each preset's steps (default 1)"},
+                traces_dir={"default": None},
                 target_compute={"help": "C(s_j) of Eq. 4 for every run (default: each preset world's; "
                                         "deviation D11 in the documentation)"})
     add_options(parser, LearnerOverrides,  # every learner hyperparameter a run may override
@@ -128,6 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "figure_formats": args.figure_formats}
     overridable = ("target_compute", *(item.name for item in dataclasses.fields(LearnerOverrides)))
     base.update({name: getattr(args, name) for name in overridable if getattr(args, name) is not None})
+    if args.traces_dir is not None:  # only when given, as the methods: read from the working folder
+        base["traces_dir"] = str(args.traces_dir)
     if args.methods:  # only when given, so that the runs without keep their folders' run ids
         base["methods"] = list(args.methods)
     specs = expand(base,

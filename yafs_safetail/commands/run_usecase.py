@@ -49,7 +49,7 @@ from yafs_safetail.settings.options import add_options, config_from_args
 
 #: The run's options in the order --help lists them (each declared once, in settings.experiment).
 OPTIONS = ("use_case", "preset", "seed", "out_dir", "force", "overwrite", "resume", "checkpoint_every_s",
-           "steps_scale", "redundancy_levels", "topology", "placement", "methods", "policy",
+           "steps_scale", "redundancy_levels", "topology", "placement", "traces_dir", "methods", "policy",
            "step_interval_s", "target_latency_s", "load_peak_users", "target_compute", "baseline_reading",
            "learning_rate",
            "workers")

@@ -111,7 +111,8 @@ class ComputeModel:
         json_path = models_dir / f"compute_uc{use_case}.json"
         for path in (npz_path, json_path):
             if not path.is_file():
-                raise TraceError(f"{path}: compute model file not found (run python traces/generate.py)")
+                raise TraceError(f"{path}: compute model file not found (traces/generate.py makes the packaged "
+                                 "ones; for your own traces: \"Measure your own\" in the documentation)")
         try:
             meta = json.loads(json_path.read_text())
             inputs = tuple(meta["inputs"])

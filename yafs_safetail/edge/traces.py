@@ -1,12 +1,15 @@
 """Loaders for the trace CSVs of ``traces/`` (formats in ``traces/README.md`` §1).
 
 Every loader validates what it reads and raises :class:`TraceError` (a ``ValueError``) with a
-one-line message naming the file, the field and, where useful, the row (1-based data row, the
-header not counted). Loaded arrays are read-only so a trace cannot be changed by accident.
+one-line message naming the file, the field and, where useful, the row, counted as a spreadsheet
+shows it: the header is row 1, the first data row row 2 (the file's line number; a blank line
+counts, and is an error inside the data). Loaded arrays are read-only so a trace cannot be changed
+by accident.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,14 +46,33 @@ class TraceError(ValueError):
     """A trace file is missing or malformed; the message names the file and the field."""
 
 
+#: The first data row's number: the header is row 1, as a spreadsheet (and an editor's line
+#: numbers) show a CSV.
+FIRST_DATA_ROW = 2
+
+
+def _at(path: Path, index: int, column: str) -> str:
+    """Where a bad value is: the file, its row as a spreadsheet shows it, and its column."""
+    return f"{path}: row {index + FIRST_DATA_ROW} (header = row 1), column {column!r}"
+
+
 def _read_csv(path: Path | str, columns: tuple[str, ...]) -> tuple[Path, pd.DataFrame]:
     path = Path(path)
     if not path.is_file():
         raise TraceError(f"{path}: trace file not found")
     try:
-        frame = pd.read_csv(path)
+        # Blank lines kept, so that a row's number is its line in the file (a blank line inside
+        # the data is then a row of empty values, reported as such).
+        frame = pd.read_csv(path, skip_blank_lines=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
+        fields = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(err))
+        if fields:  # a row with more values than the header has columns
+            expected, line, saw = fields.groups()
+            raise TraceError(f"{path}: row {line} (header = row 1): {saw} values, the header has {expected} "
+                             "columns") from None
         raise TraceError(f"{path}: not a readable CSV ({str(err).splitlines()[0]})") from err
+    ends = np.flatnonzero(~frame.isna().all(axis=1).to_numpy())
+    frame = frame.iloc[: ends[-1] + 1 if ends.size else 0]  # trailing blank lines: the file's end
     for column in columns:
         if column not in frame.columns:
             raise TraceError(f"{path}: missing column {column!r} (has {', '.join(map(str, frame.columns))})")
@@ -66,15 +88,15 @@ def _numeric(path: Path, frame: pd.DataFrame, column: str, *, positive: bool, in
     if bad.size:
         raw = frame[column].iloc[bad[0]]
         shown = "NaN/empty" if pd.isna(raw) else repr(raw) if isinstance(raw, str) else str(raw)
-        raise TraceError(f"{path}: column {column!r} row {bad[0] + 1}: {shown} is not a finite number")
+        raise TraceError(f"{_at(path, bad[0], column)}: {shown} is not a finite number")
     bad = np.flatnonzero(values <= 0 if positive else values < 0)
     if bad.size:
         need = "> 0" if positive else ">= 0"
-        raise TraceError(f"{path}: column {column!r} row {bad[0] + 1}: {values[bad[0]]:g} must be {need}")
+        raise TraceError(f"{_at(path, bad[0], column)}: {values[bad[0]]:g} must be {need}")
     if integer:
         bad = np.flatnonzero(values != np.floor(values))
         if bad.size:
-            raise TraceError(f"{path}: column {column!r} row {bad[0] + 1}: {values[bad[0]]:g} is not an integer")
+            raise TraceError(f"{_at(path, bad[0], column)}: {values[bad[0]]:g} is not an integer")
     return values
 
 
@@ -127,7 +149,7 @@ def load_bandwidth(path: Path | str) -> BandwidthTrace:
     bad = np.flatnonzero(~np.isin(direction, DIRECTIONS))
     if bad.size:
         raise TraceError(
-            f"{path}: column 'direction' row {bad[0] + 1}: {direction[bad[0]]!r} is not one of {DIRECTIONS}"
+            f"{_at(path, bad[0], 'direction')}: {direction[bad[0]]!r} is not one of {DIRECTIONS}"
         )
     pools: dict[str, list[np.ndarray]] = {d: [] for d in DIRECTIONS}
     for lvl in range(int(level.max()) + 1):
@@ -178,7 +200,7 @@ def load_propagation(path: Path | str) -> PropagationTrace:
     bad = np.flatnonzero(~np.isin(condition, PROPAGATION_CONDITIONS))
     if bad.size:
         raise TraceError(
-            f"{path}: column 'condition' row {bad[0] + 1}: {condition[bad[0]]} is not one of {PROPAGATION_CONDITIONS}"
+            f"{_at(path, bad[0], 'condition')}: {condition[bad[0]]} is not one of {PROPAGATION_CONDITIONS}"
         )
     pools = {}
     for c in PROPAGATION_CONDITIONS:
@@ -235,7 +257,7 @@ def load_compute(path: Path | str, use_case: int) -> ComputeTrace:
     bad = np.flatnonzero(k > pub.MAX_PROCESSES)
     if bad.size:
         raise TraceError(
-            f"{path}: column 'n_processes' row {bad[0] + 1}: {k[bad[0]]:g} outside 1..{pub.MAX_PROCESSES}"
+            f"{_at(path, bad[0], 'n_processes')}: {k[bad[0]]:g} outside 1..{pub.MAX_PROCESSES}"
         )
     missing = sorted(set(range(1, pub.MAX_PROCESSES + 1)) - set(k.astype(int)))
     if missing:
@@ -283,7 +305,7 @@ def load_load_trace(path: Path | str) -> LoadTrace:
     minute = _numeric(path, frame, "minute", positive=False, integer=True)
     bad = np.flatnonzero(minute != np.arange(minute.size))
     if bad.size:
-        raise TraceError(f"{path}: column 'minute' row {bad[0] + 1}: {minute[bad[0]]:g}, expected {bad[0]}")
+        raise TraceError(f"{_at(path, bad[0], 'minute')}: {minute[bad[0]]:g}, expected {bad[0]}")
     users = np.column_stack([_numeric(path, frame, d, positive=False, integer=True) for d in devices])
     return LoadTrace(_frozen(users.astype(np.int64)), devices, path)
 
@@ -339,3 +361,22 @@ def load_traces(directory: Path | str = DEFAULT_TRACE_DIR) -> TraceSet:
         load=load_load_trace(directory / "load.csv"),
         directory=directory,
     )
+
+
+#: Every file of a traces folder a run reads, relative to it: the CSVs and each use case's compute
+#: model as the NumPy forward pass loads it (``edge.compute.ComputeModel.load``; the ``.keras``
+#: copies are read only by the tests).
+READ_FILES: tuple[str, ...] = (
+    "bandwidth.csv", "propagation.csv", *(f"compute_uc{uc}.csv" for uc in pub.USE_CASES), "load.csv",
+    *(f"models/compute_uc{uc}{suffix}" for uc in pub.USE_CASES for suffix in (".npz", ".json")))
+
+
+def same_traces(directory: Path | str, other: Path | str = DEFAULT_TRACE_DIR) -> bool:
+    """Whether two traces folders hold the same bytes in every file a run reads (a copy of the
+    packaged traces is the packaged traces: its runs are theirs, titles and all)."""
+    first, second = Path(directory), Path(other)
+    for name in READ_FILES:
+        a, b = first / name, second / name
+        if not (a.is_file() and b.is_file()) or a.read_bytes() != b.read_bytes():
+            return False
+    return True

@@ -27,6 +27,9 @@ WORLD_OVERRIDES_KEY = "world_overrides"
 #: ``run.json`` key of the placement file used (beside ``topology``); absent in runs written
 #: before it was recorded.
 PLACEMENT_KEY = "placement"
+#: ``run.json`` key of the traces folder a run read (``--traces``); absent when it read the packaged
+#: ``traces/``, as every run before the option did.
+TRACES_KEY = "traces"
 #: ``run.json`` key of the result-changing options a run set away from their defaults, as options
 #: (``["--failure-probability 0.2"]``); absent when none was.
 CHANGED_SETTINGS_KEY = "changed_settings"

@@ -13,6 +13,7 @@ import yafs_safetail
 from yafs_safetail import results, versions
 from yafs_safetail.edge.scenario import REPOSITORY
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
+from yafs_safetail.edge.traces import DEFAULT_TRACE_DIR, same_traces
 from yafs_safetail.methods.learning import LearningPolicy
 from yafs_safetail.methods.policy import PolicyError
 from yafs_safetail.settings.declare import changed_settings
@@ -40,6 +41,14 @@ def titled_settings() -> tuple[str, ...]:
 def recorded_path(path: Path) -> str:
     """A file's path as run.json records it: relative to the project when inside it."""
     return os.path.relpath(path, REPOSITORY) if path.resolve().is_relative_to(REPOSITORY) else str(path)
+
+
+def own_traces(config: ExperimentConfig) -> Path | None:
+    """The traces folder ``--traces`` named, or None when the run read the packaged one."""
+    from yafs_safetail.settings.world_recipe import traces_folder
+
+    folder = traces_folder(config)
+    return None if folder.resolve() == DEFAULT_TRACE_DIR.resolve() else folder
 
 
 def learners_fields(learners: Sequence[LearningPolicy]) -> dict[str, Any]:
@@ -107,6 +116,9 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
     """
     test_world = inputs.test_world
     learned = learners_fields(learners)
+    traces = own_traces(config)
+    # A copy of the packaged traces is the packaged traces: titles name only traces of one's own.
+    untitled = (*titled_settings(), *(("traces_dir",) if traces is None or same_traces(traces) else ()))
     extra: dict[str, Any] = {
         "steps_scale": config.steps_scale,
         "step_interval_s": config.step_interval_s,
@@ -117,6 +129,8 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
         **failures_and_energy(test_world),
         **mobility_fields(config, test_world),
         results.PLACEMENT_KEY: recorded_path(Path(config.placement)),
+        # Only when --traces names another folder, so that every other run writes what it did.
+        **({results.TRACES_KEY: recorded_path(traces)} if traces is not None else {}),
         # The libraries' versions, and a note when they are not the lock's (summary.md says it).
         **versions.run_json_fields(),
         # Only when set, as learning_rate_override: summary.md scores no closeness to the
@@ -129,7 +143,7 @@ def run_metadata(config: ExperimentConfig, inputs: _Inputs, learners: Sequence[L
         **({"campaign_run_id": config.run_id} if config.run_id else {}),
         # Only when any is set: what the titles of its figures and summary.md add.
         **({results.CHANGED_SETTINGS_KEY: list(changed)} if (changed := changed_settings(
-            config, skip=titled_settings())) else {}),
+            config, skip=untitled)) else {}),
     }
     own = [key for key in learned
            if key in extra or (key in results.RUN_JSON_KEYS and key not in LEARNER_SET_KEYS)]

@@ -132,7 +132,10 @@ class WorldInputs:
     topology: Path = setting(DEFAULT_TOPOLOGY, "YAFS topology JSON with 1 to 10 edge servers "
                              "(default topologies/paper_5servers.json)")
     placement: Path = setting(DEFAULT_PLACEMENT, "YAFS placement JSON (default: placements/<topology file name>)")
-    traces_dir: Path = setting(DEFAULT_TRACE_DIR, "folder with the trace CSVs and the compute models", flag="")
+    traces_dir: Path = setting(
+        DEFAULT_TRACE_DIR, "your own measured traces: a folder with the packaged traces' CSVs and models/, in "
+        "their formats (default: the packaged traces; \"Measure your own\" in the documentation)",
+        flag="--traces", metavar="DIR")
     step_interval_s: float = setting(
         DEFAULT_STEP_INTERVAL_S, f"simulated time between two requests, one load-trace row "
         f"(default {DEFAULT_STEP_INTERVAL_S:g})", check=POSITIVE_NUMBER)

@@ -94,6 +94,20 @@ def input_file(path: str | Path) -> Path:
     return given if given.exists() else resolve_input(given, Path.cwd())
 
 
+def traces_folder(config: ExperimentConfig, style: str = "option") -> Path:
+    """The run's traces folder (``--traces``): as given when it exists there (``~`` expanded),
+    else the packaged folder of that name (``traces`` from any folder), as :func:`input_file`.
+
+    Raises:
+        ExperimentError: no such folder (its files are checked as they are read: one line
+            naming the file, the row and the column).
+    """
+    folder = input_file(Path(config.traces_dir).expanduser())
+    if not folder.is_dir():
+        raise ExperimentError(f"{_label('traces_dir', style)} {config.traces_dir}: no such folder")
+    return folder
+
+
 def _label(name: str, style: str) -> str:
     """How an error names the configuration field ``name`` (:meth:`Setting.label`)."""
     return setting_of(field_of(ExperimentConfig, name)).label(name, style)
@@ -222,7 +236,7 @@ def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe
     full, learner = learner_config(config)
     preset_world = config.world or world_settings(PRESET_WORLDS[config.preset])
     parts = read_world_parts(config.use_case, preset_world, input_file(config.topology), input_file(config.placement),
-                             config.traces_dir)
+                             traces_folder(config, style))
     try:
         settings, overrides = apply_world_overrides(parts.settings, config)
     except WorldOverrideError as error:  # named as the run's option (or field)
