@@ -102,3 +102,12 @@ def test_a_missing_folder_or_file_is_one_line_naming_it(tmp_path):
 def test_read_files_are_what_a_run_reads():
     assert all((DEFAULT_TRACE_DIR / name).is_file() for name in READ_FILES)
     assert same_traces(DEFAULT_TRACE_DIR)
+
+
+def test_reproduce_all_takes_the_traces_for_every_run(tmp_path):
+    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "reproduce_all.py"), "--uc", "1",
+                           "--seeds", "0", "--traces", "nowhere", "--out", "r"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and 'traces_dir = "nowhere": no such folder' in done.stderr
+    assert not (tmp_path / "r").exists()
