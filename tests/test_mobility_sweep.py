@@ -48,3 +48,14 @@ def test_a_topology_without_positions_fails_before_any_run(tmp_path):
     assert done.returncode == 2 and done.stderr.count("\n") == 1
     assert "needs every edge server's position" in done.stderr
     assert not (tmp_path / "s").exists()
+
+
+def test_a_policy_that_cannot_choose_stops_the_sweep_before_its_campaign(tmp_path):
+    from pathlib import Path
+
+    bad = Path(__file__).resolve().parent / "bad_policies.py"
+    done = run_in_process(mobility_sweep.main, "--seeds", "1,2", "--speeds", "rest,walking", *QUICK,
+                          "--method", f"{bad}:Empty", "--out", tmp_path / "s")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith(f"error: --method {bad}:Empty: ") and "returned []" in done.stderr
+    assert not (tmp_path / "s").exists()  # no campaign started, not even its folder

@@ -88,7 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         write_sweep_tables,
     )
     from yafs_safetail.runs.campaign import engine_free_command, run_campaign
-    from yafs_safetail.runs.grid import expand
+    from yafs_safetail.runs.experiment import check_user_policies
+    from yafs_safetail.runs.grid import expand, make_config
     from yafs_safetail.runs.output import refuse_protected
 
     command = engine_free_command(invocation("experiments/mobility_sweep.py"), sys.argv[1:] if argv is None else argv)
@@ -110,6 +111,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         named = SWEEP_RUN_FOLDER.replace("{speed}", speed)
         specs += expand({**base, "speed_mps": list(MOBILITY_SPEEDS_MPS[speed])}, {"seed": list(args.seeds)},
                         name=named, source="mobility_sweep.py")
+    if args.methods:  # each --method policy asked for its first request before the campaign starts
+        check_user_policies(make_config(specs[0], args.out / specs[0].name))
     outcome = run_campaign(specs, args.out, command=command, **engine_keywords(args))
     if outcome.failed:
         print(f"error: {outcome.failed} run(s) failed (see above); no tables written; rerun the "
