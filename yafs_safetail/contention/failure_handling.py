@@ -17,7 +17,7 @@ from yafs_safetail.contention.types import END_ALL_LOST_CODE, END_TIMEOUT_CODE
 
 if TYPE_CHECKING:
     from yafs_safetail.contention.state import Copy, Request, Server, Transfer
-    from yafs_safetail.contention.types import EngineResult, EngineSettings
+    from yafs_safetail.contention.types import EngineSettings
 
 
 class FailureHandling:
@@ -26,7 +26,7 @@ class FailureHandling:
     if TYPE_CHECKING:  # the loop's state these methods use (Simulation sets it)
         settings: EngineSettings
         servers: list[Server]
-        result: EngineResult
+        lost: list[int]
         now_s: float
         busy_s: float
         shared_links: bool
@@ -51,7 +51,7 @@ class FailureHandling:
         copy.state = LOST
         request = copy.request
         request.lost += 1
-        self.result.lost[request.index] += 1
+        self.lost[request.index] += 1
         self.lost_copies += 1
 
     def lost_on_the_way(self, copy: Copy) -> bool:

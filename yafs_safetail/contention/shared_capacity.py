@@ -5,11 +5,14 @@ trace's background tenants (a part of
 
 from __future__ import annotations
 
+import heapq
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from yafs_safetail.contention.state import Transfer
+
+_push = heapq.heappush
 
 if TYPE_CHECKING:
     from yafs_safetail.contention.state import Copy, Link, Server
@@ -23,6 +26,8 @@ class SharedCapacity:
         settings: EngineSettings
         servers: list[Server]
         now_s: float
+        top_level: int
+        sequence: Iterator[int]
         shared_links: bool
         next_request: int
         n_requests: int
@@ -54,9 +59,22 @@ class SharedCapacity:
         """The link's number of transfers (or its server's background) changed: bring every
         transfer on it up to now at its old pace and reschedule its end at the new level."""
         now_s = self.now_s
-        level = self.level_of(link.server.background + len(link.transfers) - 1)
+        users = link.server.background + len(link.transfers) - 1
+        level = users if users < self.top_level else self.top_level  # (level_of)
+        # The engine's most frequent step, written out without calls (each would cost about
+        # as much as the arithmetic): schedule's push, the events' end times.
+        events, sequence, on_transfer_end = self.events, self.sequence, self.on_transfer_end
         for transfer in link.transfers:
-            self.schedule(transfer.rescale(now_s, level), self.on_transfer_end, transfer, transfer.version)
+            whole_s = transfer.whole_s
+            if whole_s > 0.0:  # what it sent since ``since_s``, at its old pace
+                transfer.left -= (now_s - transfer.since_s) / whole_s
+            transfer.since_s = now_s
+            whole_s = 2.0 * transfer.time_by_level_s[level]
+            transfer.whole_s = whole_s
+            transfer.version += 1  # its earlier end events go stale
+            left = transfer.left
+            end_s = now_s + left * whole_s if left > 0.0 else now_s
+            _push(events, (end_s, next(sequence), on_transfer_end, transfer, transfer.version))
 
     def start_background(self) -> None:
         rows = self.settings.background
@@ -78,11 +96,13 @@ class SharedCapacity:
         if transfer.link.is_up:
             copy.output_s = term_s
             self.charge_download(copy.request, 1.0, transfer_s)
-            self.schedule(self.now_s + copy.propagation_s, self.on_reply, copy)
+            handler = self.on_reply
         else:
             copy.input_s = term_s
             self.charge_upload(copy.request, 1.0, transfer_s)
-            self.schedule(self.now_s + copy.propagation_s, self.on_arrival, copy)
+            handler = self.on_arrival
+        # (schedule, inlined: see Simulation.schedule.)
+        _push(self.events, (self.now_s + copy.propagation_s, next(self.sequence), handler, copy, 0))
 
     def on_background_change(self, period: int, _: int) -> None:
         """Background tenants take period ``period``'s values."""

@@ -77,10 +77,7 @@ class Simulation(FailureHandling, SharedCapacity):
         self.busy_s = 0.0
         self.cancelled_copies = 0
         n_requests = emit.shape[0]
-        self.result = EngineResult(emit, np.full(n_requests, np.nan), np.zeros(n_requests, dtype=np.int64),
-                                   np.zeros(n_requests, dtype=np.int64), np.zeros(n_requests, dtype=bool),
-                                   np.full(n_requests, -1, dtype=np.int64))
-        self.n_copies = self.result.n_copies
+        self.emit = emit
         self.emit_list: list[float] = emit.tolist()
         self.n_requests = n_requests
         self.next_request = 0
@@ -94,10 +91,16 @@ class Simulation(FailureHandling, SharedCapacity):
         self.radio_down_j_per_byte = settings.radio_down_j_per_byte
         self.radio_active_w = settings.radio_active_w
         self.lost_copies = 0
-        result = self.result
-        result.end_reason = np.full(n_requests, END_REPLY_CODE, dtype=np.int8)
-        result.lost = np.zeros(n_requests, dtype=np.int64)
-        # Per-request energies as lists while the loop adds to them (faster than array items).
+        # Per-request results, energies included, as lists while the loop writes them (a list
+        # item is several times cheaper to write than an array item, and every request writes
+        # these); ``run`` turns them into the result's arrays.
+        self.latency_s: list[float] = [math.nan] * n_requests
+        self.n_copies: list[int] = [0] * n_requests
+        self.refused: list[int] = [0] * n_requests
+        self.fallback: list[bool] = [False] * n_requests
+        self.winner: list[int] = [-1] * n_requests
+        self.end_reason: list[int] = [END_REPLY_CODE] * n_requests
+        self.lost: list[int] = [0] * n_requests
         self.server_energy_j = [0.0] * n_requests
         self.radio_energy_j = [0.0] * n_requests
         self.saved_energy_j = [0.0] * n_requests
@@ -123,7 +126,11 @@ class Simulation(FailureHandling, SharedCapacity):
                 break
             self.now_s, _, handler, subject, version = pop(events)
             handler(subject, version)
-        result = self.result
+        result = EngineResult(self.emit, np.asarray(self.latency_s, dtype=float),
+                              np.asarray(self.n_copies, dtype=np.int64), np.asarray(self.refused, dtype=np.int64),
+                              np.asarray(self.fallback, dtype=bool), np.asarray(self.winner, dtype=np.int64))
+        result.end_reason = np.asarray(self.end_reason, dtype=np.int8)
+        result.lost = np.asarray(self.lost, dtype=np.int64)
         result.busy_s = self.busy_s
         result.cancelled_copies = self.cancelled_copies
         result.end_s = self.now_s
@@ -135,7 +142,10 @@ class Simulation(FailureHandling, SharedCapacity):
         return result
 
     def schedule(self, at_s: float, handler: Callable[[Any, int], None], subject: Any, version: int = 0) -> None:
-        """``handler(subject, version)`` at ``at_s`` (after the events already due then)."""
+        """``handler(subject, version)`` at ``at_s`` (after the events already due then).
+
+        The events of every transfer and service end are pushed where they arise, the same way
+        (a call per event was a noticeable share of the loop's time)."""
         _push(self.events, (at_s, next(self.sequence), handler, subject, version))
 
     def level_of(self, users: int) -> int:
@@ -227,15 +237,14 @@ class Simulation(FailureHandling, SharedCapacity):
         ``reason`` (an index into ``END_REASONS``)."""
         j = request.index
         request.done = True
-        result = self.result
-        result.latency_s[j] = latency_s
-        result.refused[j] = request.refused
+        self.latency_s[j] = latency_s
+        self.refused[j] = request.refused
         if reason != END_REPLY_CODE:
-            result.end_reason[j] = reason
+            self.end_reason[j] = reason
         if copy is None:
-            result.fallback[j] = True
+            self.fallback[j] = True
         else:
-            result.winner[j] = copy.server.index
+            self.winner[j] = copy.server.index
         if not self.wants_outcomes:
             return
         self.dispatcher.completed(first_reply(request, latency_s, copy, END_REASONS[reason],
@@ -262,8 +271,8 @@ class Simulation(FailureHandling, SharedCapacity):
     def reschedule(self, server: Server) -> None:
         """Schedule the server's next completion at its current speed (earlier ones go stale)."""
         end_s = server.next_end_s(self.now_s)
-        if end_s is not None:
-            self.schedule(end_s, self.on_service_end, server, server.version)
+        if end_s is not None:  # (schedule, inlined: see there)
+            _push(self.events, (end_s, next(self.sequence), self.on_service_end, server, server.version))
 
     def occupancy_changed(self, server: Server) -> None:
         """Occupancy changed (server advanced to now): waiting copies may start, and the next

@@ -191,7 +191,8 @@ class Copy:
 
 @dataclass(slots=True, eq=False)
 class Transfer:
-    """A copy's input or reply on a shared link, processor-shared with the others there.
+    """A copy's input or reply on a shared link, processor-shared with the others there
+    (``SharedCapacity.link_changed`` brings it up to date and moves its end).
 
     Attributes:
         copy: whose data it carries.
@@ -213,19 +214,6 @@ class Transfer:
     since_s: float = 0.0
     whole_s: float = 0.0
     version: int = 0
-
-    def rescale(self, now_s: float, level: int) -> float:
-        """Bring it up to ``now_s`` at its old pace and return its end at ``level`` (a new
-        version: earlier end events go stale)."""
-        whole_s = self.whole_s
-        if whole_s > 0.0:
-            self.left -= (now_s - self.since_s) / whole_s
-        self.since_s = now_s
-        whole_s = 2.0 * self.time_by_level_s[level]
-        self.whole_s = whole_s
-        self.version += 1
-        left = self.left
-        return now_s + left * whole_s if left > 0.0 else now_s
 
     def sent_fraction(self, now_s: float) -> float:
         """The share of it sent by ``now_s`` (at its current pace), in [0, 1]."""
