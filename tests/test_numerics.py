@@ -109,3 +109,36 @@ def test_the_forward_pass_sums_in_one_order_whatever_blas_the_processor_picks():
 def test_the_forward_pass_still_refuses_malformed_weights(bad):
     with pytest.raises(ValueError, match="kernel/bias pairs"):
         NumpyForward(bad)
+
+
+def _weights_digest(policy_file) -> str:
+    import hashlib
+    import zipfile
+
+    with zipfile.ZipFile(policy_file) as archive:
+        return hashlib.sha256(archive.read("model.weights.h5")).hexdigest()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cpu", ["EPYC-Milan", "Haswell"])
+def test_an_emulated_avx2_processor_gives_the_same_files(tmp_path, cpu):
+    """A stand-in for an AVX2-only machine, AMD or Intel: QEMU's user-mode emulator (Debian's
+    qemu-user) shows the program that processor's instruction set. On the pinned path the run's
+    files and trained weights are those of this machine's; unpinned they differ
+    (docs/results.md, "Same files on every processor")."""
+    import shutil
+
+    qemu = shutil.which("qemu-x86_64")
+    if qemu is None or os.uname().machine != numerics.PINNED_MACHINE:
+        pytest.skip("needs qemu-x86_64 (apt-get install qemu-user) on an x86-64 machine")
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "run_usecase.py"
+    args = [str(script), "--uc", "1", "--steps-scale", "0.05", "--no-figures", "-q"]
+    environment = {k: v for k, v in os.environ.items() if k not in numerics.PINNED_ENVIRONMENT}
+    for name, command in (("here", [sys.executable]), ("emulated", [qemu, "-cpu", cpu, sys.executable])):
+        subprocess.run([*command, *args, "--out", str(tmp_path / name)], env=environment,
+                       capture_output=True, text=True, check=True, timeout=3000)
+    here, emulated = tmp_path / "here", tmp_path / "emulated"
+    assert (here / "requests.csv").read_bytes() == (emulated / "requests.csv").read_bytes()
+    assert _weights_digest(here / "policy.keras") == _weights_digest(emulated / "policy.keras")
