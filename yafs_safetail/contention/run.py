@@ -33,9 +33,7 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     checked_choice,
-    is_users,
-    raised_where,
-    where_defined,
+    failed_mid_run,
 )
 from yafs_safetail.record import RequestRecord
 
@@ -71,12 +69,10 @@ class PolicyDispatcher:
         try:
             chosen = self.policy.choose(observation)
         except Exception as error:
-            if not is_users(self.policy):
+            failure = failed_mid_run(self.policy, error, f"request {request + 1}")
+            if failure is None:
                 raise
-            # A user's policy failing mid-run: one line naming where, not a traceback.
-            cls = type(self.policy)
-            raise PolicyError(f"{self.policy.name} ({where_defined(cls)}): {cls.__name__}.choose() raised on "
-                              f"request {request + 1}: {raised_where(error, cls)}") from None
+            raise failure from None
         # Checked once per distinct choice (most policies repeat a few): a tuple is looked up
         # as it is, anything else (a list, an array) is checked every time.
         if chosen.__class__ is tuple and chosen in self._checked:

@@ -59,6 +59,18 @@ def where_defined(policy_class: type) -> str:
     return f"{source or policy_class.__module__}:{policy_class.__name__}"
 
 
+def failed_mid_run(policy: object, error: Exception, request: str) -> PolicyError | None:
+    """What a run says when a policy's ``choose`` raised on ``request`` ("request 30 of its
+    phase"): for a user's policy one line naming its file, class, the request and the line of
+    the user's file; None for a built-in one, whose traceback is for this project's developers."""
+    if not is_users(policy):
+        return None
+    cls = type(policy)
+    name = getattr(policy, "name", cls.__name__)
+    return PolicyError(f"{name} ({where_defined(cls)}): {cls.__name__}.choose() raised on {request}: "
+                       f"{raised_where(error, cls)}")
+
+
 #: How a policy can ask for its chosen servers' copies to be sent (``Policy.dispatch``):
 #: ``"all"`` at once; ``"hedge"``, the first now and each next one if no reply came within the
 #: policy's ``hedge_delay_s()`` (see :class:`HedgingPolicy`); ``"tied"``, all at once, the others

@@ -23,9 +23,7 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     checked_choice,
-    is_users,
-    raised_where,
-    where_defined,
+    failed_mid_run,
 )
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.sim.hooks import SINK_MODULE, EdgeModel
@@ -112,12 +110,10 @@ class PolicySelection(Selection):
             try:
                 chosen = self.policy.choose(observation)
             except Exception as error:
-                if not is_users(self.policy):
+                failure = failed_mid_run(self.policy, error, f"request {step + 1} of its phase")
+                if failure is None:
                     raise
-                # A user's policy failing mid-run: one line naming where, not a traceback.
-                cls = type(self.policy)
-                raise PolicyError(f"{self.name} ({where_defined(cls)}): {cls.__name__}.choose() raised on "
-                                  f"request {step + 1} of its phase: {raised_where(error, cls)}") from None
+                raise failure from None
             # Valid subsets recur (at most 2^n of them): validate and route each once.
             cached = self._request_routes.get(chosen) if type(chosen) is tuple else None
             if cached is None:
