@@ -25,6 +25,7 @@ from yafs_safetail.methods.registry import (
     parse_method,
 )
 from yafs_safetail.results.files import write_text_atomic
+from yafs_safetail.results.markdown import frame_markdown_table, markdown_table
 
 
 def safetail_names(frame: pd.DataFrame) -> list[str]:
@@ -104,21 +105,21 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
     for name in names:
         loads = sorted(frames[seeds[0]]["load"].unique())
         lines += [f"Each cell: {name}'s p99 over the best fixed method's (that method), then {name}'s "
-                  "copies per request.", "",
-                  "| seed | " + " | ".join(f"{load:g}" for load in loads) + " |",
-                  "|---|" + "---|" * len(loads)]
+                  "copies per request.", ""]
         ratios: dict[float, list[float]] = {load: [] for load in loads}
+        rows = []
         for seed in seeds:
             frame = frames[seed]
-            cells = []
+            cells = [str(seed)]
             for load in loads:
                 method, best = best_fixed_p99(frame, load)
                 ours = frame[(frame["method"] == name) & (frame["load"] == load)].iloc[0]
                 ratios[load].append(float(ours["p99_s"]) / best)
                 cells.append(f"{ratios[load][-1]:.2f} ({method}), {ours['mean_n_selected']:.2f}")
-            lines.append(f"| {seed} | " + " | ".join(cells) + " |")
-        lines.append("| median (min–max) | " + " | ".join(
-            f"{np.median(r):.2f} ({min(r):.2f}–{max(r):.2f})" for r in ratios.values()) + " |")
+            rows.append(cells)
+        rows.append(["median (min–max)", *(f"{np.median(r):.2f} ({min(r):.2f}–{max(r):.2f})"
+                                           for r in ratios.values())])
+        lines += markdown_table(["seed", *(f"{load:g}" for load in loads)], rows)
         lines.append("")
     holds: dict[str, list[int]] = {}
     for seed in seeds:
@@ -126,9 +127,9 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
             holds.setdefault(claim, [])
             if ok:
                 holds[claim].append(seed)
-    lines += ["| goal | holds in | seeds where it holds |", "|---|---|---|"]
-    lines += [f"| {claim} | {len(ok)} of {len(seeds)} | {', '.join(map(str, ok)) or 'none'} |"
-              for claim, ok in holds.items()]
+    lines += markdown_table(["goal", "holds in", "seeds where it holds"],
+                           ([claim, f"{len(ok)} of {len(seeds)}", ", ".join(map(str, ok)) or "none"]
+                            for claim, ok in holds.items()))
     return "\n".join(lines) + "\n"
 
 
@@ -214,15 +215,13 @@ def _method_tables(frame: pd.DataFrame, x: str,
     from the point's rows (indexed by method)."""
     names = safetail_names(frame)
     methods = names + [m for m in dict.fromkeys(frame["method"]) if m not in names]
-    header = f"| {x} | " + " | ".join(methods) + " |"
-    rule = "|---|" + "---|" * len(methods)
     blocks = []
     for title, cell in tables:
-        lines = [title, "", header, rule]
+        rows = []
         for value in sorted(frame[x].unique()):
             at = frame[frame[x] == value].set_index("method")
-            lines.append(f"| {value:g} | " + " | ".join(cell(at, m, value) for m in methods) + " |")
-        blocks.append("\n".join(lines))
+            rows.append([f"{value:g}", *(cell(at, m, value) for m in methods)])
+        blocks.append("\n".join([title, "", *markdown_table([x, *methods], rows)]))
     return "\n\n".join(blocks) + "\n"
 
 
@@ -244,20 +243,10 @@ def glance_markdown(frame: pd.DataFrame) -> str:
 def checks_markdown(frame: pd.DataFrame,
                     checks: Callable[[pd.DataFrame], list[tuple[str, bool, str]]] | None = None) -> str:
     """The goals of ``checks`` (default :func:`sweep_checks`, the load sweep's) as a Markdown table."""
-    lines = ["| goal | holds | measured |", "|---|---|---|"]
-    lines += [f"| {claim} | {'yes' if ok else 'no'} | {measured} |"
-              for claim, ok, measured in (checks or sweep_checks)(frame)]
+    lines = markdown_table(["goal", "holds", "measured"],
+                           ([claim, "yes" if ok else "no", measured]
+                            for claim, ok, measured in (checks or sweep_checks)(frame)))
     return "\n".join(lines) + "\n"
-
-
-def frame_markdown_table(frame: pd.DataFrame) -> str:
-    """A Markdown table, floats to three decimals."""
-    def cell(value: object) -> str:
-        return f"{value:.3f}" if isinstance(value, float | np.floating) else str(value)
-
-    lines = ["| " + " | ".join(frame.columns) + " |", "|" + "---|" * len(frame.columns)]
-    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(index=False)]
-    return "\n".join(lines)
 
 
 # ----------------------------------------------------------------------------- the failure sweep

@@ -5,6 +5,7 @@
 * ``stats``: summaries, speed-ups, β-step averages, intervals over seeds;
 * ``paper``: the paper's published ratios and claims, ours beside them;
 * ``report``: markdown reports and the writers of a run's folder;
+* ``markdown``: the one writer of Markdown tables (the run's reports and the sweeps');
 * ``fidelity``: the scorecard of every published number against ours;
 * ``world_bounds``, ``feasibility``: what any policy could reach in a run's world, and over a
   preset's runs;
@@ -38,6 +39,7 @@ from yafs_safetail.results.files import (
     write_requests_csv,
     write_text_atomic,
 )
+from yafs_safetail.results.markdown import frame_markdown
 from yafs_safetail.results.over_seeds import (
     aggregate_summaries,
     bootstrap_interval,
@@ -52,7 +54,6 @@ from yafs_safetail.results.paper import (
     speedup_table,
 )
 from yafs_safetail.results.report import (
-    frame_markdown,
     summary_markdown,
     write_results,
     write_summary,

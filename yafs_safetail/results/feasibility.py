@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import pandas as pd
 
 from yafs_safetail.results.fidelity import TOLERANCE
+from yafs_safetail.results.markdown import frame_markdown
 from yafs_safetail.results.paper import PERCENTILE_NAMES
-from yafs_safetail.results.report import frame_markdown
 from yafs_safetail.results.world_bounds import (
     FEASIBILITY_COLUMNS,
     GIVE_UP_SEPARATOR,

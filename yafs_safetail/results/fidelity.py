@@ -25,6 +25,7 @@ import pandas as pd
 from yafs_safetail.defaults import DEFAULT_FIGURE_FORMATS
 from yafs_safetail.methods.registry import SAFETAIL
 from yafs_safetail.results.claims import check_claims
+from yafs_safetail.results.markdown import frame_markdown
 from yafs_safetail.results.over_seeds import bootstrap_interval, geometric_interval
 from yafs_safetail.results.paper import (
     PAPER_CLAIMS,
@@ -32,7 +33,6 @@ from yafs_safetail.results.paper import (
     PERCENTILE_NAMES,
     in_calibration_subset,
 )
-from yafs_safetail.results.report import frame_markdown
 from yafs_safetail.results.stats import speedup
 
 #: A ratio is reproduced when ours is within this relative distance of the paper's.

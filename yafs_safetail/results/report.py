@@ -3,9 +3,7 @@ put a run's files in its folder."""
 
 from __future__ import annotations
 
-import math
 import os
-from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -25,6 +23,7 @@ from yafs_safetail.results.files import (
     write_requests_csv,
     write_text_atomic,
 )
+from yafs_safetail.results.markdown import format_number, markdown_table
 from yafs_safetail.results.paper import (
     PERCENTILE_NAMES,
     setting_differences,
@@ -41,22 +40,6 @@ from yafs_safetail.versions import NOT_THE_LOCK_KEY, not_the_lock_note
 #: Where a reader finds the paper's stated numbers and how they are read, as results files
 #: cite it: the paper itself and a file of the project (every reader has both).
 PAPER_SOURCE = "Section V of the paper; see docs/results.md"
-
-# --------------------------------------------------------------------------------------------
-# Markdown
-
-
-def format_number(value: float, digits: int = 3) -> str:
-    return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else (
-        f"{value:.{digits}f}"
-    )
-
-
-def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    lines.extend("| " + " | ".join(row) + " |" for row in rows)
-    return lines
-
 
 def _speedup_lines(table: pd.DataFrame, method: str, reference: str | None) -> list[str]:
     header = ["comparison"]
@@ -304,9 +287,3 @@ def write_results(
     write_run_json(directory, run)
     return write_summary(directory, requests, run)
 
-
-
-def frame_markdown(table: pd.DataFrame) -> list[str]:
-    """A frame of display strings (see :func:`aggregate_table`) as markdown table lines."""
-    return markdown_table([str(c) for c in table.columns],
-                          [[str(v) for v in row] for row in table.itertuples(index=False)])

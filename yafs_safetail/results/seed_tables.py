@@ -32,9 +32,10 @@ from yafs_safetail.results.files import (
     read_summary_csv,
     write_text_atomic,
 )
+from yafs_safetail.results.markdown import format_number, frame_markdown
 from yafs_safetail.results.over_seeds import SEED_TABLE_METRICS, metrics_over_seeds
 from yafs_safetail.results.paper import PERCENTILE_NAMES
-from yafs_safetail.results.report import PAPER_SOURCE, format_number, frame_markdown
+from yafs_safetail.results.report import PAPER_SOURCE
 from yafs_safetail.results.run_json import read_run_json
 
 #: Over the latency table: what its cells are.
