@@ -166,19 +166,42 @@ def _p99_against_energy(summary: pd.DataFrame, run: RunMetadata) -> Figure:
     return figure
 
 
-def _latency_cdf(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata) -> Figure:
-    """Each method's empirical CDF of its test-phase latencies on one log-x axes, with the average
-    target marked: where the bars of (a)-(d) show four percentiles, this shows all of them, so a
-    tail that a percentile steps over (fallbacks, a second mode) is seen."""
-    figure, axes = _new_figure(run, "Latency CDF, test phase")
-    test = requests[requests["phase"] == "test"]
-    present = list(summary["method"])
-    own = own_methods(present)
-    for method in present:
-        latencies_s = np.sort(test.loc[test["method"] == method, "latency_s"].to_numpy(dtype=float))
+def latency_cdf(requests: pd.DataFrame, run: RunMetadata, methods: Sequence[str], phase: str = "test",
+                *, panel: bool = True) -> Figure:
+    """Each of ``methods``' empirical CDF of its latencies in ``phase``, on one axes: the one
+    drawing of it, in two looks. Where the bars of (a)-(d) show four percentiles, this shows all
+    of them, so a tail that a percentile steps over (fallbacks, a second mode) is seen.
+
+    Args:
+        requests: a requests table (every phase; a method without rows in ``phase`` is skipped).
+        run: the run's metadata.
+        methods: the methods to draw, in this order.
+        phase: ``"test"`` or ``"train"``.
+        panel: True, the run's ``latency_cdf`` figure (drawn under ``STYLE``): log-x, each
+            method in its family's colour, the average target marked; False, the API's
+            (``api.latency_cdf``): linear x, matplotlib's colours, each method's p99 dotted.
+    """
+    if panel:
+        figure, axes = _new_figure(run, "Latency CDF, test phase")
+    else:
+        figure = Figure(figsize=_FIGSIZE_IN)
+        FigureCanvasAgg(figure)
+        axes = figure.add_subplot()
+    rows = requests[requests["phase"] == phase]
+    own = own_methods(list(methods))
+    for method in methods:
+        latencies_s = np.sort(rows.loc[rows["method"] == method, "latency_s"].to_numpy(dtype=float))
         if latencies_s.size == 0:
             continue
         share = np.arange(1, latencies_s.size + 1) / latencies_s.size
+        if not panel:
+            # SafeTail on top: at small budgets it often coincides with Oracle, which would hide it.
+            on_top = method == results.SAFETAIL
+            (line,) = axes.step(latencies_s, share, where="post", linewidth=1.6 if on_top else 1.1,
+                                zorder=3 if on_top else 2, label=method)
+            axes.plot([float(np.percentile(latencies_s, 99))], [0.99], marker="o", markersize=3,
+                      color=line.get_color())
+            continue
         family, level = results.parse_method(method)
         # The learner and the bound stand out; the baselines' levels are told apart by dashes too,
         # since their shades of one colour are close.
@@ -188,6 +211,15 @@ def _latency_cdf(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata
         layer = 4 if method == results.SAFETAIL else 3 if emphasis else 2
         axes.step(latencies_s, share, where="post", color=colour(method, own), label=method,
                   linestyle=style, linewidth=1.8 if emphasis else 1.0, zorder=layer)
+    if panel:
+        _panel_cdf_axes(figure, axes, requests)
+    else:
+        _plain_cdf_axes(figure, axes, run, phase)
+    return figure
+
+
+def _panel_cdf_axes(figure: Figure, axes: Axes, requests: pd.DataFrame) -> None:
+    """The run's CDF figure: the average target, a log-x axis, the legend beside the axes."""
     target_s = _average_target_s(requests)
     axes.axvline(target_s, color="black", linestyle="--", linewidth=1,
                  label=f"avg. target {target_s:.2g} s")
@@ -206,7 +238,19 @@ def _latency_cdf(requests: pd.DataFrame, summary: pd.DataFrame, run: RunMetadata
     # Beside the axes: inside, eleven entries would cover the curves wherever they were put.
     figure.subplots_adjust(right=0.73)
     axes.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=6.5, borderaxespad=0)
-    return figure
+
+
+def _plain_cdf_axes(figure: Figure, axes: Axes, run: RunMetadata, phase: str) -> None:
+    """The API's CDF figure: the p99 line, a linear axis, the legend inside, a one-line title."""
+    axes.axhline(0.99, color="#777777", linestyle=":", linewidth=0.8)
+    axes.set_xlabel("latency (s)")
+    axes.set_ylabel("fraction of requests answered")
+    axes.set_ylim(0, 1.02)
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize=7, frameon=False, loc="lower right")
+    axes.set_title(f"Latency CDF ({phase}), use case {run.use_case}, preset {run.preset}, "
+                   f"seed {run.seed}; dot: p99", fontsize=9)
+    figure.tight_layout()
 
 
 def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame, RunMetadata]:
@@ -254,7 +298,7 @@ def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]
         built["g"] = _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
                                     run, "g", "SafeTail |reward|", "average |reward|")
         built["energy"] = _p99_against_energy(summary, run)
-        built["cdf"] = _latency_cdf(requests, summary, run)
+        built["cdf"] = latency_cdf(requests, run, list(summary["method"]))
     return built
 
 
