@@ -1,7 +1,8 @@
 """What a sweep's table says: the checks against the sweep's goals, the reports' tables
-(SWEEP.md and SEEDS.md for the load sweep, FAILURE_SWEEP.md for the failure sweep) and the
-figures, and the one writer of a sweep's folder (:meth:`SweepReport.write`;
-``contention.sweep`` computes the table; this module only reads it).
+(SWEEP.md and SEEDS.md for the load sweep, FAILURE_SWEEP.md for the failure sweep, written by
+``results.markdown``), and the one writer of a sweep's folder (:meth:`SweepReport.write`; its
+figures are ``results.figures.sweeps``'; ``contention.sweep`` computes the table; this module
+only reads it).
 """
 
 from __future__ import annotations
@@ -16,14 +17,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from yafs_safetail.contention.sweep_learners import SAFETAIL_CA, SAFETAIL_LEARNERS, SAFETAIL_Q
+from yafs_safetail.contention.sweep_learners import SAFETAIL_LEARNERS
 from yafs_safetail.methods.registry import (
     BASELINE_FAMILIES,
     CONTENTION_BASELINES,
     ORACLE,
-    SAFETAIL,
     parse_method,
 )
+from yafs_safetail.results.figures.sweeps import plot_failure_sweep, plot_sweep
 from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.results.markdown import frame_markdown_table, markdown_table
 
@@ -133,77 +134,6 @@ def seeds_markdown(frames: Mapping[int, pd.DataFrame]) -> str:
     return "\n".join(lines) + "\n"
 
 
-#: How the figures draw each SafeTail (every fixed method: a thin grey-toned line).
-SAFETAIL_STYLE: dict[str, dict[str, Any]] = {
-    SAFETAIL: {"color": "tab:red", "label": "SafeTail (paper)"},
-    SAFETAIL_CA: {"color": "tab:blue", "label": "SafeTail-CA (contention-aware)"},
-    SAFETAIL_Q: {"color": "tab:purple", "label": "SafeTail-Q (the original code's targets)"},
-}
-
-
-def _plot_methods(axis: Any, frame: pd.DataFrame, column: str, x: str = "load") -> None:
-    """One line per method of ``column`` against ``x`` (the sweep's axis): the SafeTails thick
-    and coloured, Oracle dashed black, the other fixed methods thin in muted colours."""
-    fixed = [m for m in dict.fromkeys(frame["method"]) if m not in SAFETAIL_STYLE]
-    muted = ["tab:gray", "tab:olive", "tab:cyan", "tab:brown", "tab:pink", "tab:purple", "tab:orange",
-             "tab:green", "darkkhaki", "slategray"]
-    for index, method in enumerate(m for m in fixed if m != "Oracle"):
-        rows = frame[frame["method"] == method]
-        axis.plot(rows[x], rows[column], marker=".", linewidth=1.0, alpha=0.75,
-                  color=muted[index % len(muted)], label=method)
-    if "Oracle" in fixed:
-        rows = frame[frame["method"] == "Oracle"]
-        axis.plot(rows[x], rows[column], marker="x", linestyle="--", linewidth=1.4, color="black",
-                  label="Oracle (all servers)")
-    for method, style in SAFETAIL_STYLE.items():
-        rows = frame[frame["method"] == method]
-        if len(rows):
-            axis.plot(rows[x], rows[column], marker="o", linewidth=3.0, zorder=5, **style)
-
-
-def plot_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
-    """sweep.png (p99 on a log scale and copies per request against load, every method, both
-    SafeTails highlighted) and sweep_latency.png (p50 and p99 against load)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    written = []
-    fig, (latency, copies) = plt.subplots(1, 2, figsize=(12, 4.6))
-    _plot_methods(latency, frame, "p99_s")
-    latency.set_yscale("log")
-    latency.set_ylabel("p99 latency (s, log scale)")
-    latency.set_title("p99 latency against load (lower is better)")
-    _plot_methods(copies, frame, "mean_n_selected")
-    copies.set_ylabel("copies per request")
-    copies.set_title("copies sent per request against load")
-    for axis in (latency, copies):
-        axis.set_xlabel("offered load (utilisation of the slots)")
-        axis.grid(True, which="both", alpha=0.3)
-    handles, labels = latency.get_legend_handles_labels()
-    # The SafeTails (drawn last, on top) head the legend.
-    fig.legend(handles[::-1], labels[::-1], loc="center right", fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0, 0.8, 1))
-    written.append(out_dir / "sweep.png")
-    fig.savefig(written[-1], dpi=120, metadata={"Software": None})
-    plt.close(fig)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharex=True)
-    for axis, column, title in ((axes[0], "p50_s", "median"), (axes[1], "p99_s", "p99")):
-        _plot_methods(axis, frame, column)
-        axis.set_yscale("log")
-        axis.set_xlabel("offered load")
-        axis.set_ylabel(f"{title} latency (s)")
-        axis.set_title(f"{title} latency against load")
-        axis.grid(True, which="both", alpha=0.3)
-    axes[1].legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    written.append(out_dir / "sweep_latency.png")
-    fig.savefig(written[-1], dpi=120, metadata={"Software": None})
-    plt.close(fig)
-    return written
-
-
 def _seconds(value: float) -> str:
     return f"{value:,.0f}" if value >= 100 else f"{value:.2f}"
 
@@ -306,34 +236,6 @@ def failure_glance_markdown(frame: pd.DataFrame) -> str:
         ("p99 (s):", lambda at, method, level: _seconds(at.at[method, "p99_s"])),
         ("Energy per request (J: the servers' compute and the device's radio):",
          lambda at, method, level: f"{at.at[method, 'energy_j_per_request']:.3g}")])
-
-
-def plot_failure_sweep(frame: pd.DataFrame, out_dir: Path) -> list[Path]:
-    """failure_sweep.png: success rate, p99 (log scale) and energy per request against the
-    failure level, one line per method, both SafeTails highlighted."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
-    panels = (("success_rate", "success rate", "requests answered (higher is better)"),
-              ("p99_s", "p99 latency (s, log scale)", "p99 latency (lower is better)"),
-              ("energy_j_per_request", "energy per request (J)", "energy per request (lower is better)"))
-    for axis, (column, label, title) in zip(axes, panels, strict=True):
-        _plot_methods(axis, frame, column, x="failure_level")
-        axis.set_xlabel("each server's probability of being down")
-        axis.set_ylabel(label)
-        axis.set_title(title)
-        axis.grid(True, which="both", alpha=0.3)
-    axes[1].set_yscale("log")
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles[::-1], labels[::-1], loc="center right", fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0, 0.85, 1))
-    written = out_dir / "failure_sweep.png"
-    fig.savefig(written, dpi=120, metadata={"Software": None})
-    plt.close(fig)
-    return [written]
 
 
 # ----------------------------------------------------------------------------- a sweep's folder

@@ -3,6 +3,7 @@
 * ``run_figures``: one run's figures, the paper's Figs. 5-7 (a)-(g), ``p99_vs_energy`` and
   ``latency_cdf`` (``yafs-safetail figures DIR`` redraws them);
 * ``multiseed``: one use case and preset over seeds, with 95% bootstrap bands (REPORT.md);
+* ``sweeps``: a contention sweep's figures from its table (``contention.sweep_report`` writes them);
 * ``style``: what both share: matplotlib's style, each method's colour, the files' writing.
 
 Each module imports matplotlib; this package itself imports nothing.
