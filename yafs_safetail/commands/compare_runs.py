@@ -41,7 +41,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     configure_verbosity(args)
     # The arguments are checked: now the folders, with pandas and matplotlib.
-    from yafs_safetail.results.compare import compare_runs, plot_comparison, world_warning
+    from yafs_safetail.results.compare import compare_runs, world_warning
+    from yafs_safetail.results.figures.compare import plot_comparison
     from yafs_safetail.runs.output import StagedOutput
 
     output = StagedOutput(args.out) if args.out is not None else None  # the target is checked first

@@ -68,7 +68,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_verbosity(args)
 
     from yafs_safetail import __version__
-    from yafs_safetail.contention.mechanism import measure_training, mechanism_figure
+    from yafs_safetail.contention.mechanism import measure_training
+    from yafs_safetail.results.figures.mechanism import mechanism_figure
     from yafs_safetail.results.files import write_text_atomic
     from yafs_safetail.runs.output import MECHANISM_FILE, StagedOutput
     from yafs_safetail.versions import run_json_fields

@@ -5,8 +5,8 @@ world, seeds and requests: :func:`~yafs_safetail.contention.sweep.run_sweep`'s t
 watched from outside: per training request, the copies it sent, the users active per server
 when it chose (ours running or waiting, plus background tenants: the queue its copies join),
 and the request's latency. The requests are cut into equal windows of training, and each
-window's means go to ``mechanism.csv``; ``mechanism.png`` draws copies and queue length
-against training progress, one line per load, one column per SafeTail.
+window's means go to ``mechanism.csv``; ``mechanism.png`` (``results.figures.mechanism``) draws
+copies and queue length against training progress, one line per load, one column per SafeTail.
 
 Watching changes nothing: the wrapper draws no random numbers and passes every choice and
 record through, so the trained policy is the sweep's.
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -27,6 +26,7 @@ from yafs_safetail.contention.sweep import _safetail_policy as safetail_policy
 from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.policy import Policy
+from yafs_safetail.results.figures.mechanism import mechanism_figure as mechanism_figure
 
 if TYPE_CHECKING:
     from yafs_safetail.edge.observation import Observation
@@ -106,32 +106,3 @@ def measure_training(config: SweepConfig, windows: int = DEFAULT_WINDOWS,
             log(f"{variant.name} at load {load:g}: {variant.train_requests} training requests; last window "
                 f"{last['mean_copies']:.2f} copies, {last['mean_active_per_server']:.2f} active per server")
     return pd.DataFrame(rows, columns=list(MECHANISM_COLUMNS))
-
-
-def mechanism_figure(table: pd.DataFrame, path: Path) -> None:
-    """Copies per request (top) and users active per server at dispatch (bottom) against
-    training progress, one column per SafeTail, one line per load."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    methods = list(dict.fromkeys(table["method"]))
-    figure, axes = plt.subplots(2, len(methods), figsize=(4.2 * len(methods), 6.0), squeeze=False,
-                                sharex=True, sharey="row")
-    for column, method in enumerate(methods):
-        rows = table[table["method"] == method]
-        for load, group in rows.groupby("load", sort=True):
-            total = float(group["first_request"].iloc[-1] + group["requests"].iloc[-1])
-            progress = (group["first_request"] + group["requests"] / 2.0) / total
-            axes[0][column].plot(progress, group["mean_copies"], marker="o", markersize=3, label=f"load {load:g}")
-            axes[1][column].plot(progress, group["mean_active_per_server"], marker="o", markersize=3)
-        axes[0][column].set_title(method)
-        axes[1][column].set_xlabel("training progress (share of requests)")
-    axes[0][0].set_ylabel("copies per request")
-    axes[1][0].set_ylabel("users active per server at dispatch")
-    axes[1][0].set_yscale("log")
-    axes[0][0].legend(fontsize=8)
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)

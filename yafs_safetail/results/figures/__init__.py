@@ -4,6 +4,9 @@
   ``latency_cdf`` (``yafs-safetail figures DIR`` redraws them);
 * ``multiseed``: one use case and preset over seeds, with 95% bootstrap bands (REPORT.md);
 * ``sweeps``: a contention sweep's figures from its table (``contention.sweep_report`` writes them);
+* ``mechanism``, ``fidelity``, ``compare``: the training mechanism's figure, the fidelity
+  scorecard's and two runs side by side (``contention.mechanism``, ``results.fidelity`` and
+  ``results.compare`` compute their tables and re-export them);
 * ``style``: what both share: matplotlib's style, each method's colour, the files' writing.
 
 Each module imports matplotlib; this package itself imports nothing.
