@@ -9,5 +9,6 @@
   ``results.compare`` compute their tables and re-export them);
 * ``style``: what both share: matplotlib's style, each method's colour, the files' writing.
 
-Each module imports matplotlib; this package itself imports nothing.
+Each module imports matplotlib (sweeps, mechanism, fidelity and compare only when drawing, so
+the modules that re-export them stay light); this package itself imports nothing.
 """
