@@ -65,6 +65,7 @@ def _default_out_dir(config: ExperimentConfig) -> Path:
     return default_out_dir(argparse.Namespace(
         use_case=config.use_case, preset=config.preset, seed=config.seed,
         steps_scale=config.steps_scale, learning_rate=config.learning_rate,
+        objective=config.objective, baseline_reading=config.baseline_reading,
         topology=config.topology))
 
 
