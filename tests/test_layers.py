@@ -7,6 +7,7 @@ a function (a lazy import is still a dependency) or under ``if TYPE_CHECKING:``.
 from __future__ import annotations
 
 import ast
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -131,3 +132,35 @@ def _a_cycle(graph: dict[str, set[str]]) -> list[str] | None:
             if found:
                 return found
     return None
+
+
+def _documented_packages() -> set[str]:
+    """The packages docs/architecture.md's "Layers" block names, as dotted paths below
+    yafs_safetail (``methods.safetail``): a line ``  name/`` opens a package, indented by two
+    spaces per level."""
+    text = (PACKAGE.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    block = text.split("## Layers", 1)[1].split("```", 2)[1]
+    named: set[str] = set()
+    parents: list[str] = []
+    for line in block.splitlines()[2:]:  # after "yafs_safetail/"
+        if re.match(r"^\S", line):  # the checkout's other folders: experiments/, examples/...
+            break
+        match = re.match(r"^( {2}| {4})([a-z_]+)/(\s|$)", line)
+        if not match:
+            continue
+        depth = len(match.group(1)) // 2 - 1
+        parents = [*parents[:depth], match.group(2)]
+        named.add(".".join(parents))
+    return named
+
+
+def test_docs_architecture_names_every_package_and_no_other():
+    packages = {".".join(path.parent.relative_to(PACKAGE).parts)
+                for path in PACKAGE.rglob("__init__.py") if path.parent != PACKAGE}
+    assert _documented_packages() == packages
+
+
+def test_every_package_says_what_it_holds():
+    for init in PACKAGE.rglob("__init__.py"):
+        docstring = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8")))
+        assert docstring and len(docstring.split()) >= 8, f"{init}: no docstring saying what it holds"
