@@ -127,3 +127,16 @@ def test_a_users_policy_named_as_another_method_of_the_sweep_is_one_line(tmp_pat
     assert "the name 'Tied' is taken by another method of the sweep" in done.stderr
     assert not (tmp_path / "s").exists()
 
+
+
+def test_a_policy_file_in_the_methods_list_runs_as_with_method(tmp_path):
+    # The command a user first tries (issue 50): a file beside the built-in names in --methods.
+    done = run_in_process(load_sweep.main, *TINY, "--loads", "0.2,0.8", "--methods", f"Oracle,{NEAREST_FREE}",
+                          "--out", tmp_path / "listed")
+    assert done.returncode == 0, done.stderr
+    listed = pd.read_csv(tmp_path / "listed" / "sweep.csv")
+    assert listed["method"].tolist() == ["Oracle", "NearestFree"] * 2
+    given = run_in_process(load_sweep.main, *TINY, "--loads", "0.2,0.8", "--methods", "Oracle",
+                           "--method", NEAREST_FREE, "--out", tmp_path / "given")
+    assert given.returncode == 0, given.stderr
+    pd.testing.assert_frame_equal(listed, pd.read_csv(tmp_path / "given" / "sweep.csv"))

@@ -82,7 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     check_value_networks(args)
     config: FailureSweepConfig = config_from_args(args, FailureSweepConfig, base=contention_base(args, args.seed))
-    check_methods(config)
+    config = check_methods(config)
     check_test_requests(args, config)
     base = config.base
     command = engine_free_command(invocation("experiments/failure_sweep.py"),

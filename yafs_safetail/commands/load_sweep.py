@@ -93,7 +93,7 @@ def sweep_configs(args: argparse.Namespace) -> dict[int, SweepConfig]:
     check_value_networks(args)
     seed_list = args.seeds if args.seeds is not None else (args.seed,)
     config: SweepConfig = config_from_args(args, SweepConfig, base=contention_base(args, seed_list[0]))
-    check_methods(config)
+    config = check_methods(config)
     check_test_requests(args, config)
     return {seed: replace(config, base=replace(config.base, seed=seed)) for seed in seed_list}
 

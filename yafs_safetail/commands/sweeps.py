@@ -12,9 +12,9 @@ import argparse
 import json
 import sys
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from yafs_safetail import __version__
 from yafs_safetail.cli import add_plumbing, add_verbosity_options
@@ -24,6 +24,8 @@ from yafs_safetail.methods.objectives import averages_networks
 from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.options import add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
+
+SweepT = TypeVar("SweepT", bound=ContentionSweep)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -82,12 +84,22 @@ def check_mobility(base: ContentionConfig) -> None:
     mobility_plan(base, load_scenario(Path(base.topology), Path(base.placement)), "option", ContentionError)
 
 
-def check_methods(config: ContentionSweep) -> None:
+def check_methods(config: SweepT) -> SweepT:
     """The methods' names, which parsing alone cannot check, and each user's policy (``--method``)
-    on its first request, as a one-line error before any point runs."""
+    on its first request, as a one-line error before any point runs.
+
+    Returns:
+        ``config`` with any ``FILE.py:CLASS`` (or ``module:CLASS``) named in ``--methods`` moved
+        to its users' policies, as if given with ``--method`` (a built-in name has no colon).
+    """
     import numpy as np
 
-    from yafs_safetail.methods.registry import make_baseline
+    from yafs_safetail.methods.registry import UserMethod, make_baseline
+
+    specs = [name for name in config.methods if ":" in name]
+    if specs:
+        config = replace(config, methods=tuple(name for name in config.methods if ":" not in name),
+                         user_methods=(*config.user_methods, *(UserMethod(spec) for spec in specs)))
 
     for name in config.methods:  # unknown names fail before anything runs
         make_baseline(name, 5, np.random.default_rng(0))
@@ -98,6 +110,7 @@ def check_methods(config: ContentionSweep) -> None:
                                   "method of the sweep; name it with NAME=")
         rows.append(method.name)
     check_user_methods(config)
+    return config
 
 
 def check_user_methods(config: ContentionSweep) -> None:
