@@ -111,3 +111,37 @@ def test_reproduce_all_takes_the_traces_for_every_run(tmp_path):
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and 'traces_dir = "nowhere": no such folder' in done.stderr
     assert not (tmp_path / "r").exists()
+
+
+#: The smallest load sweep: ten users, two loads, fixed methods only.
+SWEEP = ("--users", "10", "--steps-scale", "0.02", "--no-safetail", "--workers", "1", "--seed", "2",
+         "--loads", "0.2,0.8", "--methods", "Oracle,Rand-1")
+
+
+def test_a_load_sweep_takes_the_traces_too(tmp_path):
+    import pandas as pd
+
+    copy = _copy_of_traces(tmp_path / "mine")
+    rows = {}
+    for name, extra in (("default", ()), ("copy", ("--traces", str(copy)))):
+        done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "load_sweep.py"), *SWEEP, *extra,
+                               "--out", str(tmp_path / name)], capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        rows[name] = pd.read_csv(tmp_path / name / "sweep.csv")
+    pd.testing.assert_frame_equal(rows["default"], rows["copy"])
+    run = json.loads((tmp_path / "copy" / "run.json").read_text())
+    assert run["traces"] == str(copy) and "traces" not in json.loads((tmp_path / "default" / "run.json").read_text())
+    # Another folder is another point: its run id names the files' contents.
+    points = json.loads((tmp_path / "copy" / "run.json").read_text())["load_runs"]
+    assert points != json.loads((tmp_path / "default" / "run.json").read_text())["load_runs"]
+    # A corrupted row stops the sweep before any point runs, in one line, nothing written.
+    lines = (copy / "propagation.csv").read_text().splitlines(keepends=True)
+    lines[4] = "2,-0.3\n"
+    (copy / "propagation.csv").write_text("".join(lines))
+    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "load_sweep.py"), *SWEEP,
+                           "--traces", str(copy), "--out", str(tmp_path / "bad")],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == (f"error: {copy}/propagation.csv: row 5 (header = row 1), column 'rtt_s': "
+                           "-0.3 must be > 0\n")
+    assert not (tmp_path / "bad").exists()

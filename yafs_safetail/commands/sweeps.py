@@ -66,7 +66,22 @@ def contention_base(args: argparse.Namespace, seed: int) -> ContentionConfig:
     """The contention world every point of a sweep shares, from the options."""
     base: ContentionConfig = config_from_args(args, ContentionConfig, seed=seed)
     check_mobility(base)
+    check_traces(base)
     return base
+
+
+def check_traces(base: ContentionConfig) -> None:
+    """``--traces``: the folder and every file a point reads, before any point runs (one line
+    naming the file, the row and the column; a point would otherwise fail in the campaign)."""
+    if base.traces_dir is None:
+        return
+    folder = Path(base.traces_dir).expanduser()
+    if not folder.is_dir():
+        raise ContentionError(f"--traces {base.traces_dir}: no such folder")
+    from yafs_safetail.edge.inputs import load_inputs
+    from yafs_safetail.edge.usecases import get_use_case
+
+    load_inputs(get_use_case(base.use_case), folder)
 
 
 def check_mobility(base: ContentionConfig) -> None:
@@ -243,6 +258,7 @@ def sweep_run_json(config: ContentionSweep, command: str, kind: str, specs: Sequ
         "topology": str(base.topology),
         "placement": str(base.placement), "user_conditions": str(base.user_conditions),
         **base.mobility_settings(),  # nothing when the users stay put
+        **({"traces": str(base.traces_dir)} if base.traces_dir is not None else {}),
         f"{config.axis.folder}_runs": {spec.name.rsplit("/", 1)[-1]: spec.run_id for spec in specs}}
 
 

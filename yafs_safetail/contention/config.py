@@ -126,9 +126,7 @@ class ContentionConfig(WorldOverrides):
     topology: Path = same_as(WorldInputs, "topology")
     placement: Path = same_as(WorldInputs, "placement",
                               help="YAFS placement JSON (default placements/paper_5servers.json)")
-    # No --traces option in the sweeps yet: their points do not carry the folder, so the option
-    # would be silently ignored (a run's --traces, docs/usage.md, is the single-user world's).
-    traces_dir: Path | None = same_as(WorldInputs, "traces_dir", default=None, optional=True, flag="")
+    traces_dir: Path | None = same_as(WorldInputs, "traces_dir", default=None, optional=True)
     block_requests: int = setting(DEFAULT_BLOCK_REQUESTS, "requests drawn per block (memory stays bounded "
                                   "however long the run)", check=POSITIVE_INTEGER, flag="")
     user_conditions: str | Path = setting(

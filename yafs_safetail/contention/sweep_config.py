@@ -270,6 +270,8 @@ class ContentionSweep:
             # Only when given, so that a sweep without them keeps its points' ids.
             **({"user_methods": [_absolute_spec(method.spec) for method in self.user_methods]}
                if self.user_methods else {}),
+            **({"traces_dir": str(Path(base.traces_dir).expanduser().resolve())}
+               if base.traces_dir is not None else {}),
         }
 
     @staticmethod
@@ -281,7 +283,9 @@ class ContentionSweep:
             # Absent from the folders of earlier versions, whose links were read at the start.
             links=settings.get("links", "at-start"), world=settings["world"],
             topology=Path(settings["topology"]), placement=Path(settings["placement"]),
-            user_conditions=settings["user_conditions"]).with_world_overrides(settings).with_mobility(settings)
+            user_conditions=settings["user_conditions"],
+            traces_dir=Path(settings["traces_dir"]) if settings.get("traces_dir") else None,
+        ).with_world_overrides(settings).with_mobility(settings)
         # One learner's name in the folders of earlier versions, which trained one SafeTail.
         learners = settings["learner"]
         return dict(base=base, methods=tuple(settings["methods"]), safetail=settings["safetail"],

@@ -50,6 +50,12 @@ def point_run_id(settings: Mapping[str, Any], kind: str = LOAD_POINT) -> str:
         identity["route"] = file_identity(Path(settings["route"]))
     if settings.get("user_methods"):  # each user's policy file's contents too
         identity["user_methods"] = [method_identity(spec) for spec in settings["user_methods"]]
+    if settings.get("traces_dir"):  # one's own traces: every file a run reads, by content
+        from yafs_safetail.edge.traces import READ_FILES
+
+        folder = Path(settings["traces_dir"])
+        identity["traces_dir"] = [file_identity(folder / name) for name in READ_FILES
+                                  if (folder / name).is_file()]
     canonical = json.dumps(identity, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()[:ID_LENGTH]
 
