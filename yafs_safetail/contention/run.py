@@ -33,7 +33,7 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     checked_choice,
-    failed_mid_run,
+    name_a_users_failure,
 )
 from yafs_safetail.record import RequestRecord
 
@@ -69,10 +69,8 @@ class PolicyDispatcher:
         try:
             chosen = self.policy.choose(observation)
         except Exception as error:
-            failure = failed_mid_run(self.policy, error, f"request {request + 1}")
-            if failure is None:
-                raise
-            raise failure from None
+            name_a_users_failure(self.policy, error, f"request {request + 1}")
+            raise
         # Checked once per distinct choice (most policies repeat a few): a tuple is looked up
         # as it is, anything else (a list, an array) is checked every time.
         if chosen.__class__ is tuple and chosen in self._checked:

@@ -59,16 +59,21 @@ def where_defined(policy_class: type) -> str:
     return f"{source or policy_class.__module__}:{policy_class.__name__}"
 
 
-def failed_mid_run(policy: object, error: Exception, request: str) -> PolicyError | None:
-    """What a run says when a policy's ``choose`` raised on ``request`` ("request 30 of its
-    phase"): for a user's policy one line naming its file, class, the request and the line of
-    the user's file; None for a built-in one, whose traceback is for this project's developers."""
+def name_a_users_failure(policy: object, error: Exception, request: str) -> None:
+    """Called where a policy's ``choose`` raised on ``request`` ("request 30 of its phase"): for
+    a user's policy, raise one line naming its file, class, the request and the line of the
+    user's file; for a built-in one return, so that the caller re-raises with the traceback this
+    project's developers need.
+
+    Raises:
+        PolicyError: ``policy`` is a user's.
+    """
     if not is_users(policy):
-        return None
+        return
     cls = type(policy)
     name = getattr(policy, "name", cls.__name__)
-    return PolicyError(f"{name} ({where_defined(cls)}): {cls.__name__}.choose() raised on {request}: "
-                       f"{raised_where(error, cls)}")
+    raise PolicyError(f"{name} ({where_defined(cls)}): {cls.__name__}.choose() raised on {request}: "
+                      f"{raised_where(error, cls)}") from None
 
 
 #: How a policy can ask for its chosen servers' copies to be sent (``Policy.dispatch``):

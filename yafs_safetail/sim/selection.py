@@ -23,7 +23,7 @@ from yafs_safetail.methods.policy import (
     PolicyError,
     check_dispatch,
     checked_choice,
-    failed_mid_run,
+    name_a_users_failure,
 )
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.sim.hooks import SINK_MODULE, EdgeModel
@@ -110,10 +110,8 @@ class PolicySelection(Selection):
             try:
                 chosen = self.policy.choose(observation)
             except Exception as error:
-                failure = failed_mid_run(self.policy, error, f"request {step + 1} of its phase")
-                if failure is None:
-                    raise
-                raise failure from None
+                name_a_users_failure(self.policy, error, f"request {step + 1} of its phase")
+                raise
             # Valid subsets recur (at most 2^n of them): validate and route each once.
             cached = self._request_routes.get(chosen) if type(chosen) is tuple else None
             if cached is None:

@@ -80,6 +80,8 @@ class SafeTailLearner:
         self.n_servers = int(n_servers)
         self.state_dim = state_dim
         self.config = config
+        # Resolved once: observe asks it on every stored tuple.
+        self._objective = config.learning_objective
         self.metadata: dict[str, Any] = dict(metadata or {})
         self._training = bool(training)
         self._seed = seed
@@ -128,7 +130,7 @@ class SafeTailLearner:
     @property
     def objective(self) -> Objective:
         """What the network is trained toward (``config.objective``'s objective)."""
-        return self.config.learning_objective
+        return self._objective
 
     @property
     def n_training_rounds(self) -> int:
