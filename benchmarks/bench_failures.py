@@ -48,8 +48,8 @@ import numpy as np
 from yafs_safetail.edge.failures import END_ALL_LOST, FailureSettings
 from yafs_safetail.methods.baselines import RandX
 from yafs_safetail.settings.experiment import ExperimentConfig
-from yafs_safetail.settings.world_recipe import world_recipe
 from yafs_safetail.sim.runner import simulate
+from yafs_safetail.worlds.recipe import world_recipe
 
 #: Mean time to failure: a thousand times a UC1 compute time (see the module docstring).
 MTTF_S = 1_000.0

@@ -52,7 +52,7 @@ from yafs_safetail.runs.most_zeros import (
     tercile_cuts,
 )
 from yafs_safetail.settings.experiment import ExperimentConfig
-from yafs_safetail.settings.world_recipe import world_recipe
+from yafs_safetail.worlds.recipe import world_recipe
 
 
 def describe(actions: np.ndarray, rewards: np.ndarray, n_selected: np.ndarray, n_servers: int,

@@ -216,7 +216,7 @@ def test_checking_users_policies_leaves_the_world_as_drawn(tmp_path):
     # gives it one, and the world every method replays must not see it.
     from yafs_safetail.methods.registry import UserMethod
     from yafs_safetail.runs.experiment import _check
-    from yafs_safetail.settings.world_recipe import TEST, make_world
+    from yafs_safetail.worlds.recipe import TEST, make_world
 
     config = tiny_config(tmp_path / "run",
                          methods=(UserMethod(f"{Path(__file__).parent / 'bad_policies.py'}:Vandal"),))

@@ -19,8 +19,8 @@ from yafs_safetail.edge.world import PHASE_STREAMS, build_world
 from yafs_safetail.methods.baselines import Oracle, RandX
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.settings.experiment import ExperimentConfig, ExperimentError
-from yafs_safetail.settings.world_recipe import world_recipe
 from yafs_safetail.sim.runner import simulate
+from yafs_safetail.worlds.recipe import world_recipe
 
 ROOT = Path(__file__).resolve().parents[1]
 STEP_S = 60.0

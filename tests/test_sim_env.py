@@ -24,8 +24,8 @@ from yafs_safetail.methods.safetail.spaces import (
 )
 from yafs_safetail.record import records_frame
 from yafs_safetail.runs.experiment import YAFS_DIR, ExperimentConfig, run_experiment
-from yafs_safetail.settings.world_recipe import make_world
 from yafs_safetail.sim.env import SafeTailEnv
+from yafs_safetail.worlds.recipe import make_world
 
 TINY = 0.02  # UC1: 200 training steps (within one α_s = 256 episode), 80 test steps
 

@@ -24,11 +24,11 @@ import numpy as np
 from yafs_safetail.defaults import DEFAULT_PLACEMENT, DEFAULT_TOPOLOGY
 from yafs_safetail.methods.registry import make_baseline, method_rng
 from yafs_safetail.settings.experiment import ExperimentConfig
-from yafs_safetail.settings.world_recipe import TEST, world_recipe
 from yafs_safetail.sim.hooks import EdgeModel, edge_application
 from yafs_safetail.sim.placement import EdgePlacement
 from yafs_safetail.sim.population import EdgePopulation
 from yafs_safetail.sim.selection import PolicySelection
+from yafs_safetail.worlds.recipe import TEST, world_recipe
 from yafs_safetail.yafs.core import Sim
 from yafs_safetail.yafs.topology import Topology
 

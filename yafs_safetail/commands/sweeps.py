@@ -88,13 +88,13 @@ def check_mobility(base: ContentionConfig) -> None:
     """How the users move, checked before any point runs (one line, named as the options): the
     options that go together and, on the move, a topology that places every server and a
     route file read whole (a point would otherwise fail only once the campaign runs it)."""
-    from yafs_safetail.settings.world_recipe import check_mobility_settings
+    from yafs_safetail.worlds.recipe import check_mobility_settings
 
     check_mobility_settings(base, "option", ContentionError)
     if base.mobility == "off":
         return
     from yafs_safetail.edge.scenario import load_scenario
-    from yafs_safetail.settings.world_recipe import mobility_plan
+    from yafs_safetail.worlds.recipe import mobility_plan
 
     mobility_plan(base, load_scenario(Path(base.topology), Path(base.placement)), "option", ContentionError)
 

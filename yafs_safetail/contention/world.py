@@ -70,7 +70,7 @@ from yafs_safetail.edge.topology_io import REFERENCE_SERVER_IPT
 from yafs_safetail.edge.world import DEFAULT_MAX_LOAD, EdgeWorld, phase_streams
 from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
 from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
-from yafs_safetail.settings.world_recipe import mobility_plan
+from yafs_safetail.worlds.recipe import mobility_plan
 
 __all__ = [
     "BACKGROUND_PERIOD_S", "ContentionWorld",

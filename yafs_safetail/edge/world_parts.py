@@ -1,7 +1,7 @@
 """What a world is drawn from: the use case, its traces, the scenario and the world's settings.
 
 Every world of the project is drawn from these four parts: the paper's single-user runs
-(``settings.world_recipe``, used by the experiment and the Gymnasium environment ``sim.env``) and
+(``worlds.recipe``, used by the experiment and the Gymnasium environment ``sim.env``) and
 the contention world (``contention.world``, which draws its request blocks and background
 tenants as edge worlds). They read the parts with :func:`read_world_parts` (the world's settings
 with a run's overrides already applied: ``settings.world.apply_world_overrides``) and draw every

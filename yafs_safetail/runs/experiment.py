@@ -65,8 +65,8 @@ from yafs_safetail.settings.experiment import (  # (also imported from here)
     ExperimentConfig,
     ExperimentError,
 )
-from yafs_safetail.settings.world_recipe import TEST, TRAIN, world_recipe
 from yafs_safetail.sim.selection import DISPATCH as SINGLE_USER_DISPATCH
+from yafs_safetail.worlds.recipe import TEST, TRAIN, world_recipe
 
 POLICY_FILE = "policy.keras"
 YAFS_DIR = "yafs"

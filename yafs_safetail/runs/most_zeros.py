@@ -41,7 +41,7 @@ from yafs_safetail.edge.calibration import seed_set
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.methods.safetail.spaces import membership_matrix
 from yafs_safetail.settings.experiment import ExperimentConfig
-from yafs_safetail.settings.world_recipe import TEST, WorldRecipe, world_recipe
+from yafs_safetail.worlds.recipe import TEST, WorldRecipe, world_recipe
 
 logger = logging.getLogger(__name__)
 

@@ -45,7 +45,7 @@ def recorded_path(path: Path) -> str:
 
 def own_traces(config: ExperimentConfig) -> Path | None:
     """The traces folder ``--traces`` named, or None when the run read the packaged one."""
-    from yafs_safetail.settings.world_recipe import traces_folder
+    from yafs_safetail.worlds.recipe import traces_folder
 
     folder = traces_folder(config)
     return None if folder.resolve() == DEFAULT_TRACE_DIR.resolve() else folder

@@ -8,9 +8,9 @@ The floor below ``sim``, ``contention`` and ``runs`` (docs/architecture.md):
 - ``parse``: text to value for the command line (standard library only);
 - ``world``: the world's settings a run may override (``WorldOverrides``), declared once for
   the experiment, the contention world, the sweeps and both Gymnasium environments;
-- ``experiment``: the single-user run's configuration (``ExperimentConfig``);
-- ``world_recipe``: from an experiment's configuration to the pre-drawn world of a phase.
+- ``experiment``: the single-user run's configuration (``ExperimentConfig``).
 
 Nothing is imported here: the commands build their parsers from ``declare``, ``world`` and
-``experiment`` before NumPy loads, while ``world_recipe`` reads traces with NumPy.
+``experiment`` before NumPy loads. From a configuration to the worlds it draws is ``worlds.recipe``'s
+(``world_recipe``, here, is its deprecated alias).
 """

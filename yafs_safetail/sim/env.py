@@ -11,7 +11,7 @@ world ``run_usecase.py --seed s`` trains in (or tests in, ``phase="test"``), and
 sends one request to the chosen subset and runs the simulation until that request has its
 first reply. SafeTail trained through this environment gives the same records and weights as
 ``run_usecase.py`` (tested). Its world comes from the same recipe as the experiment's
-(``settings.world_recipe``), so it takes the same world settings, as keywords named as the
+(``worlds.recipe``), so it takes the same world settings, as keywords named as the
 run's fields (:data:`ENV_SETTINGS`, derived from ``settings.experiment``'s declarations: a world
 setting declared there is a keyword here with nothing else edited): ``target_latency_s``,
 ``load_peak_users`` and ``target_compute`` as ``--target-latency-s``, ``--load-peak-users`` and
@@ -72,8 +72,8 @@ from yafs_safetail.observation_space import OBSERVATION_KINDS, encode_observatio
 from yafs_safetail.record import PHASES, RequestRecord
 from yafs_safetail.settings.declare import config_from_keywords, field_of, keyword_names
 from yafs_safetail.settings.experiment import ExperimentConfig, WorldSetup
-from yafs_safetail.settings.world_recipe import world_recipe
 from yafs_safetail.sim.runner import Simulation, SimulationError, deploy
+from yafs_safetail.worlds.recipe import world_recipe
 
 #: The run's settings the environment takes as keywords (named and checked as the run's fields):
 #: the use case, preset and budget, every setting of the world (``WorldSetup``) and the D15
