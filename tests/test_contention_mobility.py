@@ -12,11 +12,11 @@ import pytest
 from yafs_safetail.contention.config import ContentionError
 from yafs_safetail.contention.env import ContentionEnv
 from yafs_safetail.contention.run import run_policy, summarise
-from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
 from yafs_safetail.edge.movement import server_positions_m
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE, distances_m
 from yafs_safetail.methods.registry import make_baseline
+from yafs_safetail.runs.sweep_config import SweepConfig
 from yafs_safetail.settings.declare import field_of, setting_of
 
 ROOT = Path(__file__).resolve().parents[1]

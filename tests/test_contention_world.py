@@ -14,7 +14,6 @@ import pytest
 from in_process import Done, run_in_process
 
 from yafs_safetail.contention.run import PolicyDispatcher, run_policy, summarise
-from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.contention.world import (
     LINK_MODELS,
     ContentionConfig,
@@ -26,6 +25,7 @@ from yafs_safetail.edge.scenario import DEFAULT_TOPOLOGY, REPOSITORY, ScenarioEr
 from yafs_safetail.edge.topology_io import load_topology
 from yafs_safetail.methods.policy import Policy, PolicyError
 from yafs_safetail.methods.registry import make_baseline
+from yafs_safetail.runs.sweep_config import SweepConfig
 
 SWEEP = REPOSITORY / "experiments" / "load_sweep.py"
 
@@ -422,7 +422,7 @@ def test_load_sweep_target_and_links_options(tmp_path):
 
 
 def test_sweep_checks_are_computed_from_the_rows():
-    from yafs_safetail.contention.sweep_report import sweep_checks
+    from yafs_safetail.results.sweep_report import sweep_checks
 
     def row(load, method, p99_s, copies):
         return {"load": load, "method": method, "p99_s": p99_s, "mean_n_selected": copies}
@@ -441,13 +441,13 @@ def test_sweep_checks_are_computed_from_the_rows():
 
 
 def test_both_safetails_are_checked_and_neither_is_a_fixed_method():
-    from yafs_safetail.contention.sweep_learners import SAFETAIL_CA
-    from yafs_safetail.contention.sweep_report import (
+    from yafs_safetail.results.sweep_report import (
         best_fixed_p99,
         glance_markdown,
         seeds_markdown,
         sweep_checks,
     )
+    from yafs_safetail.runs.sweep_learners import SAFETAIL_CA
 
     def row(load, method, p99_s, copies):
         return {"load": load, "method": method, "p99_s": p99_s, "mean_n_selected": copies}

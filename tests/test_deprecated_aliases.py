@@ -13,6 +13,9 @@ from test_layers import DEPRECATED_ALIASES
 #: Old path -> new path.
 MOVED = {
     "yafs_safetail.settings.world_recipe": "yafs_safetail.worlds.recipe",
+    **{f"yafs_safetail.contention.{name}": f"yafs_safetail.runs.{name}"
+       for name in ("sweep", "sweep_config", "sweep_checks", "sweep_learners", "mechanism")},
+    "yafs_safetail.contention.sweep_report": "yafs_safetail.results.sweep_report",
 }
 
 

@@ -11,15 +11,15 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from yafs_safetail.contention.sweep_config import (
+from yafs_safetail.contention.world import ContentionConfig, ContentionError
+from yafs_safetail.edge.failures import DEFAULT_MTTR_S
+from yafs_safetail.results.sweep_report import failure_checks
+from yafs_safetail.runs.sweep_config import (
     DEFAULT_FAILURE_LOAD,
     FAILURE_POINT,
     FailureSweepConfig,
     SweepConfig,
 )
-from yafs_safetail.contention.sweep_report import failure_checks
-from yafs_safetail.contention.world import ContentionConfig, ContentionError
-from yafs_safetail.edge.failures import DEFAULT_MTTR_S
 from yafs_safetail.runs.sweep_points import point_specs
 
 REPOSITORY = Path(__file__).resolve().parents[1]

@@ -42,7 +42,7 @@ CASES = {
     "feasibility without a folder": (["yafs-safetail", "feasibility"], 2),
     "learning rate --help": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--help"], 0),
     "learning rate --uc 7": ([str(REPOSITORY / "experiments" / "choose_learning_rate.py"), "--uc", "7"], 2),
-    # The sweeps' options come from contention.sweep_config, so these guard its imports too.
+    # The sweeps' options come from runs.sweep_config, so these guard its imports too.
     **{f"{command} --help": (["yafs-safetail", command, "--help"], 0)
        for command in ("sweep", "failure-sweep", "mechanism")},
     **{f"{script} --help": ([str(REPOSITORY / "experiments" / f"{script}.py"), "--help"], 0)

@@ -56,6 +56,8 @@ def _floor(module: str) -> str | None:
 #: of the floors, since a user's old import, not the package, is what they serve.
 DEPRECATED_ALIASES = frozenset({
     "yafs_safetail.settings.world_recipe",
+    *(f"yafs_safetail.contention.{name}" for name in ("sweep", "sweep_config", "sweep_checks", "sweep_learners",
+                                                      "sweep_report", "mechanism")),
 })
 
 

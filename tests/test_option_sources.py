@@ -11,7 +11,7 @@ from pathlib import Path
 from yafs_safetail.cli import PLUMBING_FLAGS
 from yafs_safetail.commands.training_mechanism import Measurement
 from yafs_safetail.contention.config import ContentionConfig
-from yafs_safetail.contention.sweep_config import FailureSweepConfig, SweepConfig
+from yafs_safetail.runs.sweep_config import FailureSweepConfig, SweepConfig
 from yafs_safetail.settings.declare import has_setting, setting_of
 from yafs_safetail.settings.experiment import ExperimentConfig
 
@@ -70,7 +70,7 @@ def test_the_same_setting_has_the_same_option_in_a_run_and_a_sweep(capsys) -> No
     """A server's mean time to repair is --failure-mttr-s in both; the sweep's old --mttr-s still works."""
     import argparse
 
-    from yafs_safetail.contention.sweep_config import FailureSweepConfig
+    from yafs_safetail.runs.sweep_config import FailureSweepConfig
     from yafs_safetail.settings.options import add_options
 
     parser = argparse.ArgumentParser()

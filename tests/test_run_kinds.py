@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from yafs_safetail.contention.sweep_config import FAILURE_POINT, LOAD_POINT
 from yafs_safetail.runs.engines import RUN_KINDS, RunTask, execute
 from yafs_safetail.runs.grid import RunSpec
+from yafs_safetail.runs.sweep_config import FAILURE_POINT, LOAD_POINT
 
 
 def test_every_kind_a_campaign_makes_has_a_runner():

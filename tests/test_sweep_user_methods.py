@@ -14,9 +14,9 @@ import pytest
 from in_process import run_in_process
 
 from yafs_safetail.commands import failure_sweep, load_sweep
-from yafs_safetail.contention.sweep_config import SWEEP_WORLD, SweepConfig
-from yafs_safetail.contention.sweep_learners import training_requests
 from yafs_safetail.methods.registry import UserMethod
+from yafs_safetail.runs.sweep_config import SWEEP_WORLD, SweepConfig
+from yafs_safetail.runs.sweep_learners import training_requests
 from yafs_safetail.runs.sweep_points import point_specs
 
 REPOSITORY = Path(__file__).resolve().parents[1]

@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from yafs_safetail.contention.mechanism import MECHANISM_COLUMNS, WatchedPolicy, window_rows
 from yafs_safetail.contention.run import run_policy
 from yafs_safetail.contention.world import ContentionConfig, ContentionWorld
 from yafs_safetail.methods.registry import make_baseline
+from yafs_safetail.runs.mechanism import MECHANISM_COLUMNS, WatchedPolicy, window_rows
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 SMALL = {"use_case": 1, "users": 8, "load": 0.6, "n_requests": 300, "queue": True, "background": False}

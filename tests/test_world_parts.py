@@ -59,7 +59,7 @@ def test_the_contention_world_takes_the_experiments_world_overrides():
 
 def test_a_sweep_point_records_the_world_overrides_only_when_set():
     from yafs_safetail.contention.config import ContentionConfig
-    from yafs_safetail.contention.sweep_config import SweepConfig
+    from yafs_safetail.runs.sweep_config import SweepConfig
     from yafs_safetail.runs.sweep_points import point_specs
 
     plain = SweepConfig(base=ContentionConfig(users=10), loads=(0.5,))

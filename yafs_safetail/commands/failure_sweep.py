@@ -52,8 +52,8 @@ from yafs_safetail.commands.sweeps import (
     sweep_run_json,
 )
 from yafs_safetail.contention.config import ContentionConfig
-from yafs_safetail.contention.sweep_config import FailureSweepConfig
 from yafs_safetail.runs.engine_options import engine_free_command
+from yafs_safetail.runs.sweep_config import FailureSweepConfig
 from yafs_safetail.settings.options import add_options, config_from_args
 
 #: run.json's kind of a failure sweep's folder.
@@ -64,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="failure_sweep.py", description=__doc__,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     add_users_options(parser)
-    # The sweep's own settings, each declared once in contention.sweep_config.FailureSweepConfig.
+    # The sweep's own settings, each declared once in runs.sweep_config.FailureSweepConfig.
     add_options(parser, FailureSweepConfig, only=("failure_levels", "load", "mttr_s", "timeout_s"))
     add_options(parser, ContentionConfig, only=("seed",))
     add_options(parser, FailureSweepConfig, only=LEARNER_OPTIONS)
@@ -73,7 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     configure_verbosity(args)
     # The arguments are checked: now the sweep and its report, with NumPy and pandas.
-    from yafs_safetail.contention.sweep_report import (
+    from yafs_safetail.results.sweep_report import (
         FAILURE_REPORT,
         checks_markdown,
         failure_checks,

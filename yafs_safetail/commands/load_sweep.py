@@ -59,8 +59,8 @@ from yafs_safetail.commands.sweeps import (
     sweep_run_json,
 )
 from yafs_safetail.contention.config import ContentionConfig
-from yafs_safetail.contention.sweep_config import SweepConfig
 from yafs_safetail.runs.engine_options import engine_free_command
+from yafs_safetail.runs.sweep_config import SweepConfig
 from yafs_safetail.settings.options import add_list_options, add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
 
@@ -81,7 +81,7 @@ def _parser() -> ArgumentParser:
     add_list_options(seeds, ContentionConfig, {"seed": "--seeds"},
                      seed={"help": "several distinct seeds, comma-separated: a sweep per seed in OUT/seed-<S>/, "
                                    "compared in OUT/SEEDS.md"})
-    # The sweep's own settings, each declared once in contention.sweep_config.SweepConfig.
+    # The sweep's own settings, each declared once in runs.sweep_config.SweepConfig.
     add_options(parser, SweepConfig, only=LEARNER_OPTIONS)
     add_world_options(parser)
     add_output_options(parser, SweepConfig)
@@ -104,14 +104,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     # The arguments are checked: now the sweep and its report, with NumPy and pandas.
     import pandas as pd
 
-    from yafs_safetail.contention.sweep_report import (
+    from yafs_safetail.results.files import write_text_atomic
+    from yafs_safetail.results.sweep_report import (
         LOAD_REPORT,
         checks_markdown,
         glance_markdown,
         seeds_markdown,
         write_table,
     )
-    from yafs_safetail.results.files import write_text_atomic
     from yafs_safetail.runs.output import SWEEP_FILE
     from yafs_safetail.runs.sweep_points import point_specs
 

@@ -1,6 +1,6 @@
 """What the sweep commands share (``load_sweep``, ``failure_sweep``; ``training_mechanism``
 takes the world's options from here too): their options, derived from the declarations of
-``contention.config.ContentionConfig`` and ``contention.sweep_config``, the world every point
+``contention.config.ContentionConfig`` and ``runs.sweep_config``, the world every point
 shares, the checks that parsing alone cannot make, and the campaign every sweep is.
 
 Not a command. Light at import, as every command's options must be (``tests/test_first_answer.py``).
@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from yafs_safetail import __version__
 from yafs_safetail.cli import add_plumbing, add_verbosity_options
 from yafs_safetail.contention.config import ContentionConfig, ContentionError
-from yafs_safetail.contention.sweep_config import SWEEP_WORLD, ContentionSweep
 from yafs_safetail.methods.objectives import averages_networks
 from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
+from yafs_safetail.runs.sweep_config import SWEEP_WORLD, ContentionSweep
 from yafs_safetail.settings.options import add_options, config_from_args
 from yafs_safetail.versions import run_json_fields
 
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from yafs_safetail.runs.grid import RunSpec
 
 #: The sweep's settings given as options beside the axis's (each declared once in
-#: contention.sweep_config), in the order --help lists them.
+#: runs.sweep_config), in the order --help lists them.
 LEARNER_OPTIONS = ("steps_scale", "test_requests_per_load", "preset", "reward", "target", "objectives",
                    "n_networks", "dispatch")
 #: The world's options every sweep opens with; the rest of the world's follow the learners'.

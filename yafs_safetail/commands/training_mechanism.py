@@ -33,11 +33,11 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.commands.sweeps import add_users_options, add_world_options, contention_base
 from yafs_safetail.contention.config import ContentionConfig
-from yafs_safetail.contention.sweep_config import SweepConfig
+from yafs_safetail.runs.sweep_config import SweepConfig
 from yafs_safetail.settings.declare import POSITIVE_INTEGER, setting
 from yafs_safetail.settings.options import add_options, config_from_args
 
-#: Windows of training per load (contention.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).
+#: Windows of training per load (runs.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).
 DEFAULT_WINDOWS = 20
 MECHANISM_KIND = "training_mechanism"
 
@@ -55,7 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     add_users_options(parser)
     add_options(parser, ContentionConfig, only=("seed",))
-    # The load sweep's own settings, declared once in contention.sweep_config.SweepConfig.
+    # The load sweep's own settings, declared once in runs.sweep_config.SweepConfig.
     add_options(parser, SweepConfig, only=("loads", "steps_scale", "preset", "reward", "target", "objectives",
                                            "n_networks", "dispatch"))
     add_options(parser, Measurement)
@@ -68,9 +68,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_verbosity(args)
 
     from yafs_safetail import __version__
-    from yafs_safetail.contention.mechanism import measure_training
     from yafs_safetail.results.figures.mechanism import mechanism_figure
     from yafs_safetail.results.files import write_text_atomic
+    from yafs_safetail.runs.mechanism import measure_training
     from yafs_safetail.runs.output import MECHANISM_FILE, StagedOutput
     from yafs_safetail.versions import run_json_fields
 

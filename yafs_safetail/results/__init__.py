@@ -6,6 +6,7 @@
 * ``paper``: the paper's published ratios and claims, ours beside them;
 * ``report``: markdown reports and the writers of a run's folder;
 * ``markdown``: the one writer of Markdown tables (the run's reports and the sweeps');
+* ``sweep_report``: a contention sweep's tables, its goals' checks and its folder's writer;
 * ``fidelity``: the scorecard of every published number against ours;
 * ``world_bounds``, ``feasibility``: what any policy could reach in a run's world, and over a
   preset's runs;

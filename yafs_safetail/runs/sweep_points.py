@@ -1,7 +1,7 @@
 """A contention sweep's points as campaign runs: each point's run id, its ``RunSpec`` and the
 run that writes its folder.
 
-The sweep itself (every method at a point, one loop) is ``contention.sweep``'s; a campaign
+The sweep itself (every method at a point, one loop) is ``runs.sweep``'s; a campaign
 (``runs.campaign``) executes each point on any engine (``runs.engines``'s ``RUN_KINDS``), so a
 sweep is resumable and spread over workers as every campaign is.
 """
@@ -15,13 +15,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from yafs_safetail.contention.sweep import run_sweep
-from yafs_safetail.contention.sweep_config import LOAD_POINT, POINT_KINDS, ContentionSweep
 from yafs_safetail.contention.world import ContentionError
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
 from yafs_safetail.results.files import write_text_atomic
 from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
 from yafs_safetail.runs.output import StagedOutput
+from yafs_safetail.runs.sweep import run_sweep
+from yafs_safetail.runs.sweep_config import LOAD_POINT, POINT_KINDS, ContentionSweep
 
 log = logging.getLogger(__name__)
 

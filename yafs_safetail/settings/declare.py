@@ -5,7 +5,7 @@ name and type are the field's, and its :class:`Setting` says the rest (default, 
 :class:`Check`, whether it changes the results, its command-line option). Every configuration of
 the project declares its fields this way (``settings.experiment.ExperimentConfig``,
 ``settings.world.WorldOverrides``, ``contention.config.ContentionConfig``, the sweeps'
-``contention.sweep_config``); a configuration that means the same thing as another's field takes
+``runs.sweep_config``); a configuration that means the same thing as another's field takes
 that declaration with :func:`same_as` instead of writing it again.
 
 Derived here, for any such configuration: the checks (:func:`check_config`), a configuration

@@ -1,6 +1,6 @@
 """SafeTail assembled: a fresh learner, the policy around it and its reward, in one place.
 
-A run (``runs.learners``), a contention sweep (``contention.sweep``, and ``contention.mechanism``
+A run (``runs.learners``), a contention sweep (``runs.sweep``, and ``runs.mechanism``
 through it) build SafeTail only through :func:`make_safetail`, so every one of them seeds it,
 scales its state and chooses its reward alike.
 """

@@ -1,5 +1,5 @@
 """mechanism.png, the training mechanism's figure (``yafs-safetail training-mechanism``), drawn
-from mechanism.csv's table (``contention.mechanism.measure_training``).
+from mechanism.csv's table (``runs.mechanism.measure_training``).
 
 matplotlib is imported by the drawing function, so importing this module stays light.
 """

@@ -1,6 +1,6 @@
 """A contention sweep's figures, drawn from its table (sweep.csv or failure_sweep.csv's frame):
 sweep.png and sweep_latency.png for the load sweep, failure_sweep.png for the failure sweep
-(``contention.sweep_report.SweepReport`` writes them with the rest of a sweep's folder).
+(``results.sweep_report.SweepReport`` writes them with the rest of a sweep's folder).
 
 matplotlib is imported by the drawing functions, so importing this module stays light.
 """
@@ -16,7 +16,7 @@ from yafs_safetail.methods.objectives import objective_named
 from yafs_safetail.methods.registry import SAFETAIL
 
 #: How the figures draw each SafeTail (every fixed method: a thin grey-toned line); the names are
-#: the sweeps' (contention.sweep_learners: each objective's method name).
+#: the sweeps' (each objective's method name).
 SAFETAIL_STYLE: dict[str, dict[str, Any]] = {
     SAFETAIL: {"color": "tab:red", "label": "SafeTail (paper)"},
     objective_named("value").method_name: {"color": "tab:blue", "label": "SafeTail-CA (contention-aware)"},
