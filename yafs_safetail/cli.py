@@ -223,6 +223,7 @@ SCRIPT_COMMANDS = {
     "mechanism": ("training_mechanism", "many users: each SafeTail's copies and queues over its training"),
     "failure-sweep": ("failure_sweep", "servers that fail: success, p99 and energy per request"),
     "mobility-sweep": ("mobility_sweep", "a user who moves: every method's p99 and servers against speed"),
+    "score": ("score_policy", "your policy in every world, beside SafeTail, with paired intervals"),
     "figures": ("figures", "redraw a results folder's figures"),
     "feasibility": ("feasibility", "what any policy could reach in the worlds of run folders"),
 }

@@ -25,6 +25,9 @@ PACKAGED_DATA = _PACKAGE / "_data"
 #: The folder holding topologies/, placements/ and traces/: the installed copy if there is one,
 #: otherwise the source checkout the package is imported from.
 DATA_ROOT = PACKAGED_DATA if PACKAGED_DATA.is_dir() else _PACKAGE.parent
+#: The paper's five servers placed on a campus, the user with them: where a user moves
+#: (docs/mobility.md; the mobility sweep's and the scoring suite's walking user).
+CAMPUS_TOPOLOGY = DATA_ROOT / "topologies" / "campus_5servers.json"
 #: The default files' folders, relative to :data:`DATA_ROOT`, and which of their files a wheel
 #: must carry (setup.py copies exactly these; a test checks every default file is covered).
 DATA_FILES: dict[str, tuple[str, ...]] = {

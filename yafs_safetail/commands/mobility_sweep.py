@@ -36,14 +36,11 @@ from yafs_safetail.cli import (
     invocation,
     print_result,
 )
-from yafs_safetail.defaults import DATA_ROOT, MOBILITY_SPEEDS_MPS
+from yafs_safetail.defaults import CAMPUS_TOPOLOGY, MOBILITY_SPEEDS_MPS
 from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.declare import one_of, setting
 from yafs_safetail.settings.experiment import ExperimentConfig
 from yafs_safetail.settings.options import add_list_options, add_options
-
-#: The sweep's default topology: the paper's five servers, placed (docs/mobility.md).
-CAMPUS_TOPOLOGY = DATA_ROOT / "topologies" / "campus_5servers.json"
 
 
 @dataclass(frozen=True)

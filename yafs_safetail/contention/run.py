@@ -12,6 +12,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from yafs_safetail.methods.policy import (
     name_a_users_failure,
 )
 from yafs_safetail.record import RequestRecord
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: The share of a run's first requests left out of its figures: the servers start empty.
 WARMUP_FRACTION = 0.05
@@ -138,6 +142,24 @@ def run_policy(world: ContentionWorld, policy: Policy, *, queue: bool | None = N
     return PolicyRun(policy.name, result, time.perf_counter() - started)
 
 
+def _after_warmup(n: int, warmup_fraction: float) -> slice:
+    """The requests a summary counts: all but the first ``warmup_fraction`` (at least one)."""
+    return slice(min(int(warmup_fraction * n), n - 1), n)
+
+
+def request_rows(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> pd.DataFrame:
+    """The requests :func:`summarise` counts, one row each in emission order: ``request`` (its
+    index in the run), ``latency_s``, ``n_copies`` and ``energy_j``. Every method of a sweep
+    point meets the same requests, so rows of two methods pair by ``request``."""
+    import pandas as pd  # only where requests are kept one by one (a scoring suite's points)
+
+    result = run.result
+    keep = _after_warmup(result.latency_s.shape[0], warmup_fraction)
+    index = np.arange(result.latency_s.shape[0])[keep]
+    return pd.DataFrame({"method": run.method, "request": index, "latency_s": result.latency_s[keep],
+                         "n_copies": result.n_copies[keep], "energy_j": result.energy_j[keep]})
+
+
 def summarise(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> dict[str, float | int | str]:
     """One row of :data:`SUMMARY_COLUMNS` over the requests after the warm-up.
 
@@ -149,7 +171,7 @@ def summarise(run: PolicyRun, warmup_fraction: float = WARMUP_FRACTION) -> dict[
     """
     result = run.result
     n = result.latency_s.shape[0]
-    keep = slice(min(int(warmup_fraction * n), n - 1), n)
+    keep = _after_warmup(n, warmup_fraction)
     latency = result.latency_s[keep]
     end_reason = result.end_reason[keep]
     p50, p90, p95, p99 = np.percentile(latency, [50, 90, 95, 99]).tolist() if latency.size else [math.nan] * 4

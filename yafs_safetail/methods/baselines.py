@@ -90,6 +90,16 @@ class MinLoadX(Policy):
         return tuple(order[: self.x].tolist())
 
 
+
+class LeastLoadedTwo(MinLoadX):
+    """The two servers with the fewest active users among all n, whatever the baseline reading:
+    the strongest simple policy, which the scoring suite (``yafs-safetail score``) sets beside a
+    user's as a user's policy is given (``yafs_safetail.methods.baselines:LeastLoadedTwo``)."""
+
+    def __init__(self, n_servers: int, rng: np.random.Generator) -> None:
+        super().__init__(n_servers, rng, 2)
+        self.name = "LeastLoaded-2"
+
 class MinPropX(Policy):
     """The x servers with the lowest median propagation latency ρ^μ_i.
 

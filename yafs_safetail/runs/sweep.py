@@ -27,7 +27,7 @@ from typing import Any
 import pandas as pd
 
 from yafs_safetail.contention.config import ContentionConfig
-from yafs_safetail.contention.run import run_policy, summarise
+from yafs_safetail.contention.run import PolicyRun, run_policy, summarise
 from yafs_safetail.contention.world import ContentionWorld
 from yafs_safetail.methods.learning import TEST_PHASE, TRAIN_PHASE
 from yafs_safetail.methods.policy import Policy
@@ -80,9 +80,11 @@ def _row_line(row: Mapping[str, Any]) -> str:
     return line
 
 
-def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line: None) -> pd.DataFrame:
+def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line: None,
+              on_test_run: Callable[[float, PolicyRun], None] | None = None) -> pd.DataFrame:
     """Every (point, method) row of the sweep's table, points ascending, methods in the given
-    order (the SafeTails first)."""
+    order (the SafeTails first). ``on_test_run(value, run)`` sees each method's test run at
+    each point, for what the table does not keep (its requests one by one)."""
     rows: list[dict[str, Any]] = []
     inputs = scenario = None
     label = config.axis.label
@@ -108,6 +110,8 @@ def run_sweep(config: ContentionSweep, log: Callable[[str], None] = lambda line:
             policies.append(_user_policy(config, value, method, test_config, test_world, log))
         for policy, train_requests in policies:
             run = run_policy(test_world, policy, target=config.target)
+            if on_test_run is not None:
+                on_test_run(value, run)
             row = {**config.point_columns(value, test_world), **summarise(run), "train_requests": train_requests}
             rows.append(row)
             log(f"{label} {value:g}: {policy.name:<11} {_row_line(row)}  ({run.wall_s:.1f} s)")

@@ -25,6 +25,12 @@ from yafs_safetail.runs.sweep_config import LOAD_POINT, POINT_KINDS, ContentionS
 
 log = logging.getLogger(__name__)
 
+#: A point setting (absent unless true, so other points keep their ids): keep the test requests
+#: one by one in the point's REQUESTS_FILE (method, request, latency_s, n_copies, energy_j), for
+#: intervals paired by request (``yafs-safetail score``).
+PER_REQUEST = "per_request"
+REQUESTS_FILE = "requests.csv"
+
 
 def method_identity(spec: str) -> dict[str, str]:
     """A user's policy in a point's identity: its name, class and file (place and contents, as
@@ -73,9 +79,13 @@ def point_specs(config: ContentionSweep) -> list[RunSpec]:
 
 def run_sweep_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: bool = False) -> Path:
     """Run one point of a sweep (a campaign run of kind ``load_point`` or ``failure_point``)
-    into ``out_dir``: its ``sweep.csv`` rows, a ``run.json`` recording the run id and a
-    ``run.log`` (staged; nothing is lost if it stops half way)."""
+    into ``out_dir``: its ``sweep.csv`` rows (and with :data:`PER_REQUEST` its test requests in
+    ``requests.csv``), a ``run.json`` recording the run id and a ``run.log`` (staged; nothing is
+    lost if it stops half way)."""
+    import pandas as pd
+
     from yafs_safetail import __version__
+    from yafs_safetail.contention.run import request_rows
     from yafs_safetail.versions import run_json_fields
 
     if spec.kind not in POINT_KINDS:
@@ -88,9 +98,13 @@ def run_sweep_point(spec: RunSpec, out_dir: Path, command: str = "", overwrite: 
             log.info("yafs-safetail %s: %s", __version__, command or "(run from Python)")
             log.info("%s point %s (run id %s): %s", config.axis.label, spec.name, spec.run_id,
                      ", ".join(f"{key}={value}" for key, value in spec.settings.items()))
+            kept: list[pd.DataFrame] = []
+            on_test_run = (lambda value, run: kept.append(request_rows(run))) if spec.settings.get(PER_REQUEST) else None
             with Phase(f"{spec.name} sweep", logger=log):
-                frame = run_sweep(config, log=log.info)
+                frame = run_sweep(config, log=log.info, on_test_run=on_test_run)
             frame.to_csv(staging / "sweep.csv", index=False, float_format="%.6g")
+            if kept:
+                pd.concat(kept, ignore_index=True).to_csv(staging / REQUESTS_FILE, index=False, float_format="%.9g")
             write_text_atomic(staging / "run.json", json.dumps({
                 "package_version": __version__, "campaign_run_id": spec.run_id, "kind": spec.kind,
                 "command": command, "settings": dict(spec.settings), **run_json_fields()}, indent=1, sort_keys=True) + "\n")

@@ -1,0 +1,241 @@
+"""The scoring suite's report: one policy beside SafeTail, Oracle, the best fixed method and the
+strongest simple policy in every scenario, with intervals paired by request.
+
+Every method of a scenario meets the same requests (common random numbers), so the report pairs
+them: a ratio's 95% interval comes from a paired moving-block bootstrap (:func:`paired_ratio`).
+Each resample draws blocks of consecutive requests, within each seed, and applies the same
+draws to both methods; blocks, because a request's latency follows its neighbours' (the load
+trace, the queues), which an interval that resamples requests one by one would ignore.
+
+``score_table`` gives the rows (``score.csv``), ``report_markdown`` the page (``REPORT.md``);
+the figure is ``results.figures.score``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from yafs_safetail.results.markdown import markdown_table
+
+#: Bootstrap resamples of every interval (a fixed generator: the same folders give the same page).
+RESAMPLES = 1000
+BOOTSTRAP_SEED = 20261128
+#: Resamples drawn at once (bounds the memory a large scenario takes).
+_CHUNK = 50
+#: The built-in methods the "best fixed method" is chosen from (the one with the lowest p99).
+FIXED = re.compile(r"^(Rand|MinLoad|MinProp)-\d+$")
+#: The figures of a method's row, in the report's order.
+FIGURES = ("p50_s", "p99_s", "servers", "energy_j")
+
+
+def scenario_requests(folder: Path, paper_world: bool) -> pd.DataFrame:
+    """One seed's test requests of a scenario's run folder, every method's, as ``method,
+    request, latency_s, servers, energy_j`` (a run's ``requests.csv`` test phase, or a sweep
+    point's kept requests)."""
+    frame = pd.read_csv(folder / "requests.csv")
+    if paper_world:
+        frame = frame[frame["phase"] == "test"]
+        # "servers" there lists the servers chosen ("1;3"); here it counts them.
+        frame = frame.drop(columns="servers").rename(columns={"request_id": "request", "n_selected": "servers"})
+    else:
+        frame = frame.rename(columns={"n_copies": "servers"})
+    return frame[["method", "request", "latency_s", "servers", "energy_j"]].reset_index(drop=True)
+
+
+def _figure(values: np.ndarray, name: str) -> np.ndarray:
+    """A figure over the last axis: a percentile of latencies, or a mean."""
+    if name == "p50_s":
+        return np.percentile(values, 50, axis=-1)
+    if name == "p99_s":
+        return np.percentile(values, 99, axis=-1)
+    return np.mean(values, axis=-1)
+
+
+def block_length(n_requests: int) -> int:
+    """Consecutive requests per bootstrap block: √n, long enough to keep a queue's or a load
+    minute's run of neighbours together, short enough for many distinct resamples."""
+    return max(1, round(math.sqrt(n_requests)))
+
+
+def _resample_indices(lengths: Sequence[int], rng: np.random.Generator, n_resamples: int) -> np.ndarray:
+    """``n_resamples`` rows of indices into the seeds' requests laid end to end: per seed, as
+    many blocks of consecutive requests (:func:`block_length`, wrapping round) as fill it."""
+    parts = []
+    offset = 0
+    for n in lengths:
+        block = block_length(n)
+        n_blocks = -(-n // block)
+        starts = rng.integers(0, n, size=(n_resamples, n_blocks))
+        rows = (starts[:, :, None] + np.arange(block)) % n
+        parts.append(rows.reshape(n_resamples, -1)[:, :n] + offset)
+        offset += n
+    return np.concatenate(parts, axis=1)
+
+
+def paired_ratio(mine: Sequence[np.ndarray], theirs: Sequence[np.ndarray], figure: str,
+                 rng: np.random.Generator, n_resamples: int = RESAMPLES) -> tuple[float, float, float]:
+    """figure(mine) / figure(theirs) over every seed's requests, and its paired 95% moving-block
+    bootstrap interval. ``mine[s]`` and ``theirs[s]`` are seed s's values request by request, in
+    the requests' order (the same requests)."""
+    lengths = [len(values) for values in mine]
+    if [len(values) for values in theirs] != lengths:
+        raise ValueError("paired_ratio: the two methods met different numbers of requests")
+    a, b = np.concatenate(mine), np.concatenate(theirs)
+    ratio = float(_figure(a, figure) / _figure(b, figure))
+    ratios = []
+    for start in range(0, n_resamples, _CHUNK):
+        index = _resample_indices(lengths, rng, min(_CHUNK, n_resamples - start))
+        ratios.append(_figure(a[index], figure) / _figure(b[index], figure))
+    low, high = np.percentile(np.concatenate(ratios), [2.5, 97.5])
+    return ratio, float(low), float(high)
+
+
+def _best_fixed(figures: pd.DataFrame) -> str | None:
+    fixed = [method for method in figures.index if FIXED.match(method)]
+    return min(fixed, key=lambda method: (figures.loc[method, "p99_s"], method)) if fixed else None
+
+
+def comparators(methods: Sequence[str], mine: str, least_loaded: str, figures: pd.DataFrame) -> dict[str, str]:
+    """Who a scenario sets the policy beside: role -> method (each SafeTail, Oracle, the best
+    fixed method by p99, the strongest simple policy), those the scenario ran."""
+    roles = {method: method for method in methods if method == "SafeTail" or method.startswith("SafeTail-")}
+    if "Oracle" in methods:
+        roles["Oracle"] = "Oracle"
+    best = _best_fixed(figures)
+    if best is not None:
+        roles["best fixed"] = best
+    if least_loaded in methods and least_loaded != mine:
+        roles["least-loaded"] = least_loaded
+    return roles
+
+
+def score_table(requests: Mapping[str, Sequence[pd.DataFrame]], mine: str, least_loaded: str,
+                seed: int = BOOTSTRAP_SEED) -> pd.DataFrame:
+    """One row per (scenario, method): the method's figures over every seed's requests (median
+    and p99 latency, servers and energy per request) and, for each method set beside ``mine``,
+    ``mine``'s p50 and p99 over its with paired 95% intervals.
+
+    Args:
+        requests: per scenario, each seed's :func:`scenario_requests`.
+        mine: the scored policy's method name.
+        least_loaded: the strongest simple policy's method name.
+    """
+    rng = np.random.default_rng(seed)
+    rows = []
+    for scenario, seeds in requests.items():
+        methods = list(dict.fromkeys(seeds[0]["method"]))
+        by_method = {method: [frame[frame["method"] == method].sort_values("request") for frame in seeds]
+                     for method in methods}
+        for method, parts in by_method.items():
+            if any(not np.array_equal(part["request"], own["request"]) for part, own in zip(parts, by_method[mine],
+                                                                                         strict=True)):
+                raise ValueError(f"scenario {scenario}: {method} and {mine} met different requests; "
+                                 "their ratios cannot be paired")
+        pooled = {method: pd.concat(parts) for method, parts in by_method.items()}
+        figures = pd.DataFrame({method: {
+            "p50_s": float(np.percentile(part["latency_s"], 50)), "p99_s": float(np.percentile(part["latency_s"], 99)),
+            "servers": float(part["servers"].mean()), "energy_j": float(part["energy_j"].mean())}
+            for method, part in pooled.items()}).T
+        roles = {mine: "your policy", **{method: role for role, method in
+                                         comparators(methods, mine, least_loaded, figures).items()}}
+        for method, role in roles.items():
+            row: dict[str, object] = {"scenario": scenario, "role": role, "method": method,
+                                      "seeds": len(seeds), "requests": len(pooled[method]),
+                                      **figures.loc[method].to_dict()}
+            for figure in ("p50_s", "p99_s"):
+                ratio, low, high = (paired_ratio([p["latency_s"].to_numpy() for p in by_method[mine]],
+                                                 [p["latency_s"].to_numpy() for p in by_method[method]], figure, rng)
+                                    if method != mine else (1.0, 1.0, 1.0))
+                row |= {f"ratio_{figure}": ratio, f"ratio_{figure}_low": low, f"ratio_{figure}_high": high}
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _interval(row: pd.Series, figure: str) -> str:
+    return (f"{row[f'ratio_{figure}']:.3f} [{row[f'ratio_{figure}_low']:.3f}, "
+            f"{row[f'ratio_{figure}_high']:.3f}]")
+
+
+def verdict(row: pd.Series) -> str:
+    """Whether the policy's p99 is below the other's, above it, or neither, at 95%."""
+    if row["ratio_p99_s_high"] < 1:
+        return "faster"
+    if row["ratio_p99_s_low"] > 1:
+        return "slower"
+    return "no clear difference"
+
+
+def glance_markdown(table: pd.DataFrame, roles: Sequence[str]) -> list[str]:
+    """Per scenario, the policy's p99 over each role's, with its interval (and who the best
+    fixed method was)."""
+    header = ["scenario", "your p99 (s)", "your servers", *(f"÷ {role}" for role in roles)]
+    lines = []
+    for scenario, part in table.groupby("scenario", sort=False):
+        by_role = part.set_index("role")
+        mine = by_role.loc["your policy"]
+        cells = [str(scenario), f"{mine['p99_s']:.3f}", f"{mine['servers']:.2f}"]
+        for role in roles:
+            if role not in by_role.index:
+                cells.append("—")
+                continue
+            row = by_role.loc[role]
+            name = f" ({row['method']})" if role == "best fixed" else ""
+            cells.append(_interval(row, "p99_s") + name)
+        lines.append(cells)
+    return markdown_table(header, lines)
+
+
+def scenario_markdown(part: pd.DataFrame) -> list[str]:
+    """One scenario's table: each method's figures and the policy's ratios over them."""
+    header = ["method", "role", "p50 (s)", "p99 (s)", "servers per request", "energy (J per request)",
+              "your p50 ÷ its [95%]", "your p99 ÷ its [95%]"]
+    rows = []
+    for _, row in part.iterrows():
+        mine = row["role"] == "your policy"
+        rows.append([str(row["method"]), str(row["role"]), f"{row['p50_s']:.3f}", f"{row['p99_s']:.3f}",
+                     f"{row['servers']:.2f}", f"{row['energy_j']:.3g}",
+                     "—" if mine else _interval(row, "p50_s"), "—" if mine else _interval(row, "p99_s")])
+    return markdown_table(header, rows)
+
+
+def report_markdown(table: pd.DataFrame, mine: str, titles: Mapping[str, str], settings: Mapping[str, object],
+                    command: str, figure: str | None) -> str:
+    """REPORT.md: the answer first (how often the policy's p99 is clearly below or above
+    SafeTail's), the glance table and figure, each scenario's table, how the intervals are
+    computed and the suite's settings."""
+    roles = [role for role in ("SafeTail", "Oracle", "best fixed", "least-loaded") if role in set(table["role"])]
+    against = table[table["role"] == "SafeTail"]
+    counts = {word: sum(verdict(row) == word for _, row in against.iterrows())
+              for word in ("faster", "slower", "no clear difference")}
+    lines = [f"# {mine} scored in {table['scenario'].nunique()} scenarios (profile {settings['name']})", "",
+             f"**Against SafeTail's p99, {mine} is faster in {counts['faster']}, slower in {counts['slower']} "
+             f"and not clearly different in {counts['no clear difference']} of {len(against)} scenarios** "
+             "(95% intervals paired by request).", "",
+             "A ratio is your policy's figure over the other method's: below 1, yours is lower (faster). "
+             "`best fixed` is the fixed baseline (Rand-x, MinLoad-x, MinProp-x) with the lowest p99 in "
+             "that scenario; `least-loaded` sends each request to the two least-loaded servers of all.", "",
+             "## At a glance: your p99 over theirs", "", *glance_markdown(table, roles), ""]
+    if figure:
+        lines += [f"![your p99 over each method's, per scenario]({figure})", ""]
+    lines += ["## Per scenario", ""]
+    for scenario, part in table.groupby("scenario", sort=False):
+        first = part.iloc[0]
+        lines += [f"### {scenario}: {titles.get(str(scenario), '')}", "",
+                  f"{first['seeds']} seed(s), {first['requests']} test requests per method.", "",
+                  *scenario_markdown(part), ""]
+    lines += ["## How the intervals are computed", "",
+              "Every method of a scenario meets the same requests, in the same order, with the same random "
+              "draws (common random numbers). Each interval is a paired moving-block bootstrap "
+              f"({RESAMPLES} resamples): within each seed, blocks of √n consecutive requests are drawn "
+              "with replacement (n: that seed's test requests), the same blocks for both methods; the "
+              "figure is computed over every seed's resampled requests together; the interval is the "
+              "2.5th and 97.5th percentiles of the ratios (docs/results.md, \"Paired intervals\").", "",
+              "## The suite's settings", "", f"`{command}`", "", "```", *(f"{key}: {value}" for key, value in
+                                                                       settings.items()), "```", ""]
+    return "\n".join(lines)
