@@ -145,3 +145,30 @@ def test_a_load_sweep_takes_the_traces_too(tmp_path):
     assert done.stderr == (f"error: {copy}/propagation.csv: row 5 (header = row 1), column 'rtt_s': "
                            "-0.3 must be > 0\n")
     assert not (tmp_path / "bad").exists()
+
+
+def test_the_mobility_sweep_takes_the_traces_too(tmp_path):
+    import pandas as pd
+
+    copy = _copy_of_traces(tmp_path / "mine")
+    sweep = ("--seeds", "4", "--speeds", "walking", "--steps-scale", "0.02", "--no-figures", "--workers", "1", "-q")
+    tables = {}
+    for name, extra in (("default", ()), ("copy", ("--traces", str(copy)))):
+        done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "mobility_sweep.py"), *sweep, *extra,
+                               "--out", str(tmp_path / name)], capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        tables[name] = pd.read_csv(tmp_path / name / "mobility.csv")
+    pd.testing.assert_frame_equal(tables["default"], tables["copy"])
+    run = json.loads((tmp_path / "copy" / "walking" / "seed4" / "run.json").read_text())
+    assert run["traces"] == str(copy)
+    # A corrupted row stops the sweep before any run starts, in one line, nothing written.
+    lines = (copy / "propagation.csv").read_text().splitlines(keepends=True)
+    lines[4] = "2,-0.3\n"
+    (copy / "propagation.csv").write_text("".join(lines))
+    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "mobility_sweep.py"), *sweep,
+                           "--traces", str(copy), "--out", str(tmp_path / "bad")],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == (f"error: {copy}/propagation.csv: row 5 (header = row 1), column 'rtt_s': "
+                           "-0.3 must be > 0\n")
+    assert not (tmp_path / "bad").exists()

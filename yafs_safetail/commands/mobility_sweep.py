@@ -61,12 +61,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_list_options(parser, ExperimentConfig, {"seed": "--seeds"},
                      seed={"default": (0, 1, 2), "help": "distinct seeds (default 0,1,2)"})
     add_options(parser, ExperimentConfig, only=("use_case", "preset", "steps_scale", "topology", "placement",
-                                                "pause_s", "step_interval_s", "baseline_reading", "methods",
-                                                "figures", "figure_formats"),
+                                                "pause_s", "step_interval_s", "baseline_reading", "traces_dir",
+                                                "methods", "figures", "figure_formats"),
                 topology={"default": CAMPUS_TOPOLOGY,
                           "help": "YAFS topology JSON placing the user and every edge server "
                                   "(default topologies/campus_5servers.json)"},
                 placement={"default": None, "help": "YAFS placement JSON (default: placements/<topology file name>)"},
+                traces_dir={"default": None},
                 figures={"help": "skip each run's own figures (the sweep's figure is drawn anyway)"})
     add_plumbing(parser, "--out", type=Path, default=Path("results/mobility"),
                  help="output folder (default results/mobility)")
@@ -88,6 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from yafs_safetail.runs.experiment import check_user_policies
     from yafs_safetail.runs.grid import expand, make_config
     from yafs_safetail.runs.output import refuse_protected
+    from yafs_safetail.worlds.recipe import world_recipe
 
     command = engine_free_command(invocation("experiments/mobility_sweep.py"), sys.argv[1:] if argv is None else argv)
     refuse_protected(args.out)
@@ -100,6 +102,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in ("step_interval_s", "baseline_reading"):
         if getattr(args, name) != getattr(ExperimentConfig(), name):
             base[name] = getattr(args, name)
+    if args.traces_dir is not None:  # read from the working folder, as the methods' files
+        base["traces_dir"] = str(args.traces_dir)
     if args.methods:
         base["methods"] = list(args.methods)
     # One campaign: every (speed, seed) a run, resumable and in parallel, at OUT/<speed>/seed<S>.
@@ -108,8 +112,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         named = SWEEP_RUN_FOLDER.replace("{speed}", speed)
         specs += expand({**base, "speed_mps": list(MOBILITY_SPEEDS_MPS[speed])}, {"seed": list(args.seeds)},
                         name=named, source="mobility_sweep.py")
+    first = make_config(specs[0], args.out / specs[0].name)
+    if args.traces_dir is not None:  # every trace file read and checked before the campaign starts
+        world_recipe(first)
     if args.methods:  # each --method policy asked for its first request before the campaign starts
-        check_user_policies(make_config(specs[0], args.out / specs[0].name))
+        check_user_policies(first)
     outcome = run_campaign(specs, args.out, command=command, **engine_keywords(args))
     if outcome.failed:
         print(f"error: {outcome.failed} run(s) failed (see above); no tables written; rerun the "
