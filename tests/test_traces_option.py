@@ -113,6 +113,19 @@ def test_reproduce_all_takes_the_traces_for_every_run(tmp_path):
     assert not (tmp_path / "r").exists()
 
 
+def _refuses_a_corrupted_row(script: str, options: tuple[str, ...], copy: Path, out: Path) -> None:
+    """``script`` on ``copy`` with one bad row stops in one line naming it, exit 2, nothing at ``out``."""
+    lines = (copy / "propagation.csv").read_text().splitlines(keepends=True)
+    lines[4] = "2,-0.3\n"
+    (copy / "propagation.csv").write_text("".join(lines))
+    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / script), *options,
+                           "--traces", str(copy), "--out", str(out)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == (f"error: {copy}/propagation.csv: row 5 (header = row 1), column 'rtt_s': "
+                           "-0.3 must be > 0\n")
+    assert not out.exists()
+
+
 #: The smallest load sweep: ten users, two loads, fixed methods only.
 SWEEP = ("--users", "10", "--steps-scale", "0.02", "--no-safetail", "--workers", "1", "--seed", "2",
          "--loads", "0.2,0.8", "--methods", "Oracle,Rand-1")
@@ -135,16 +148,7 @@ def test_a_load_sweep_takes_the_traces_too(tmp_path):
     points = json.loads((tmp_path / "copy" / "run.json").read_text())["load_runs"]
     assert points != json.loads((tmp_path / "default" / "run.json").read_text())["load_runs"]
     # A corrupted row stops the sweep before any point runs, in one line, nothing written.
-    lines = (copy / "propagation.csv").read_text().splitlines(keepends=True)
-    lines[4] = "2,-0.3\n"
-    (copy / "propagation.csv").write_text("".join(lines))
-    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "load_sweep.py"), *SWEEP,
-                           "--traces", str(copy), "--out", str(tmp_path / "bad")],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 2, done.stderr
-    assert done.stderr == (f"error: {copy}/propagation.csv: row 5 (header = row 1), column 'rtt_s': "
-                           "-0.3 must be > 0\n")
-    assert not (tmp_path / "bad").exists()
+    _refuses_a_corrupted_row("load_sweep.py", SWEEP, copy, tmp_path / "bad")
 
 
 def test_the_mobility_sweep_takes_the_traces_too(tmp_path):
@@ -162,13 +166,4 @@ def test_the_mobility_sweep_takes_the_traces_too(tmp_path):
     run = json.loads((tmp_path / "copy" / "walking" / "seed4" / "run.json").read_text())
     assert run["traces"] == str(copy)
     # A corrupted row stops the sweep before any run starts, in one line, nothing written.
-    lines = (copy / "propagation.csv").read_text().splitlines(keepends=True)
-    lines[4] = "2,-0.3\n"
-    (copy / "propagation.csv").write_text("".join(lines))
-    done = subprocess.run([sys.executable, str(REPOSITORY / "experiments" / "mobility_sweep.py"), *sweep,
-                           "--traces", str(copy), "--out", str(tmp_path / "bad")],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 2, done.stderr
-    assert done.stderr == (f"error: {copy}/propagation.csv: row 5 (header = row 1), column 'rtt_s': "
-                           "-0.3 must be > 0\n")
-    assert not (tmp_path / "bad").exists()
+    _refuses_a_corrupted_row("mobility_sweep.py", sweep, copy, tmp_path / "bad")
