@@ -10,43 +10,21 @@ import subprocess
 import sys
 from pathlib import Path
 
+from source_addition import source_hook
+
 REPOSITORY = Path(__file__).resolve().parents[1]
-#: Adds the class to the module's source as it is imported: nothing on disk changes.
-HOOK = '''
-import importlib.machinery, sys
-NEW = """
+#: The class, added to the module's source as it is imported: nothing on disk changes.
+HOOK = source_hook("yafs_safetail.methods.objectives", """
 
 class MixedTarget(Objective):
-    \\"\\"\\"Test only: §III's target vector mixed with the uniform one.\\"\\"\\"
+    \"\"\"Test only: §III's target vector mixed with the uniform one.\"\"\"
 
     name = "mixed-target"
     method_name = "SafeTail-M"
 
     def write_target(self, row, action, reward, n_servers):
         row[...] = 0.9 * target_vector(action, reward, n_servers) + 0.1 / len(row)
-"""
-
-class Loader(importlib.machinery.SourceFileLoader):
-    def get_data(self, path):
-        data = super().get_data(path)
-        if path.endswith(".py"):
-            data += NEW.encode()
-        return data
-
-    def path_stats(self, path):  # never a cached bytecode of the unchanged source
-        raise OSError
-
-class Finder(importlib.machinery.PathFinder):
-    @classmethod
-    def find_spec(cls, name, path=None, target=None):
-        spec = super().find_spec(name, path, target)
-        if spec is not None and name == "yafs_safetail.methods.objectives":
-            spec.loader = Loader(name, spec.origin)
-        return spec
-
-if ADD:
-    sys.meta_path.insert(0, Finder)
-'''
+""")
 PROBE = '''
 import dataclasses, json
 import numpy as np

@@ -235,7 +235,7 @@ def report_markdown(table: pd.DataFrame, mine: str, titles: Mapping[str, str], s
               f"({RESAMPLES} resamples): within each seed, blocks of √n consecutive requests are drawn "
               "with replacement (n: that seed's test requests), the same blocks for both methods; the "
               "figure is computed over every seed's resampled requests together; the interval is the "
-              "2.5th and 97.5th percentiles of the ratios (docs/results.md, \"Paired intervals\").", "",
+              "2.5th and 97.5th percentiles of the ratios (docs/results.md, \"Paired intervals by request\").", "",
               "## The suite's settings", "", f"`{command}`", "", "```", *(f"{key}: {value}" for key, value in
                                                                        settings.items()), "```", ""]
     return "\n".join(lines)

@@ -13,7 +13,8 @@ panel in each format asked (PNG by default, PDF too):
 * beyond the paper, ``p99_vs_energy`` (each method's p99 against its energy per request) and
   ``latency_cdf`` (each method's test-phase latency CDF on a log axis, the average target marked).
 
-Latency panels use the test phase. Figures are drawn with matplotlib's object API on the Agg
+Each figure is one function registered with :func:`run_figure` (:data:`RUN_FIGURES`, in drawing
+order): a new figure of every run is one more. Latency panels use the test phase. Figures are drawn with matplotlib's object API on the Agg
 canvas (no pyplot, so no global figure state and nothing to close), and every file is written
 under a temporary name and renamed, so bad input or a crash never leaves a half-written or
 deleted figure behind.
@@ -22,7 +23,8 @@ deleted figure behind.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -46,19 +48,38 @@ from yafs_safetail.results.figures.style import (
 from yafs_safetail.results.paper import PERCENTILE_NAMES
 
 FIGURES_DIR = "figures"
-FIGURE_STEMS: dict[str, str] = {
-    "a": "fig_a_latency_comparison",
-    "b": "fig_b_safetail_vs_rand",
-    "c": "fig_c_safetail_vs_minload",
-    "d": "fig_d_safetail_vs_minprop",
-    "e": "fig_e_access_rate",
-    "f": "fig_f_latency_deviation",
-    "g": "fig_g_abs_reward",
-    # Beyond the paper: what each method's tail costs in energy (docs/failures_energy.md).
-    "energy": "p99_vs_energy",
-    # Beyond the paper: every method's whole test-phase latency distribution, not four points of it.
-    "cdf": "latency_cdf",
-}
+
+
+@dataclass(frozen=True)
+class FigureInputs:
+    """What every figure of a run is drawn from: the checked requests table, its summary per
+    method (test phase), the train/test boundary in average episodes, and the run's metadata."""
+
+    requests: pd.DataFrame
+    summary: pd.DataFrame
+    boundary: float
+    run: RunMetadata
+
+
+#: Each figure of a run, in drawing order: its key (a panel letter, or a name beyond the paper)
+#: -> the function that builds it. A new figure is one function under :func:`run_figure`.
+RUN_FIGURES: dict[str, Callable[[FigureInputs], Figure]] = {}
+#: Each figure's key -> its file's name without the extension (in ``RESULTS_DIR/figures/``).
+FIGURE_STEMS: dict[str, str] = {}
+
+
+def run_figure(key: str, stem: str) -> Callable[[Callable[[FigureInputs], Figure]], Callable[[FigureInputs], Figure]]:
+    """Register a figure of every run: ``build(inputs) -> Figure``, drawn under matplotlib's
+    style and written as ``figures/<stem>.<format>`` by :func:`draw_figures` (and by each run)."""
+    def register(build: Callable[[FigureInputs], Figure]) -> Callable[[FigureInputs], Figure]:
+        if key in RUN_FIGURES or stem in FIGURE_STEMS.values():
+            raise ValueError(f"run_figure: the figure {key!r} or the file {stem!r} is taken")
+        RUN_FIGURES[key] = build
+        FIGURE_STEMS[key] = stem
+        return build
+    return register
+
+
 _FIGSIZE_IN = (5.2, 3.5)
 
 
@@ -273,33 +294,70 @@ def read_figure_inputs(directory: str | os.PathLike[str]) -> tuple[pd.DataFrame,
     return requests, run
 
 
+@run_figure("a", "fig_a_latency_comparison")
+def _figure_a(inputs: FigureInputs) -> Figure:
+    return _latency_comparison(inputs.requests, inputs.summary, inputs.run)
+
+
+def _family_figure(panel: str, family: str) -> Callable[[FigureInputs], Figure]:
+    def build(inputs: FigureInputs) -> Figure:
+        return _family_comparison(inputs.summary, inputs.run, panel, family)
+    return build
+
+
+for _panel, _family, _stem in zip("bcd", results.BASELINE_FAMILIES,
+                                  ("fig_b_safetail_vs_rand", "fig_c_safetail_vs_minload", "fig_d_safetail_vs_minprop"),
+                                  strict=True):
+    run_figure(_panel, _stem)(_family_figure(_panel, _family))
+
+
+@run_figure("e", "fig_e_access_rate")
+def _figure_e(inputs: FigureInputs) -> Figure:
+    return _episode_curve(results.access_rate_by_episode(inputs.requests, inputs.run.beta), inputs.boundary,
+                          inputs.run, "e", "SafeTail access rate", "average access rate")
+
+
+@run_figure("f", "fig_f_latency_deviation")
+def _figure_f(inputs: FigureInputs) -> Figure:
+    return _episode_curve(results.latency_deviation_by_episode(inputs.requests, inputs.run.beta), inputs.boundary,
+                          inputs.run, "f", "SafeTail latency deviation", "average target − latency (s)",
+                          zero_line=True)
+
+
+@run_figure("g", "fig_g_abs_reward")
+def _figure_g(inputs: FigureInputs) -> Figure:
+    return _episode_curve(results.abs_reward_by_episode(inputs.requests, inputs.run.beta), inputs.boundary,
+                          inputs.run, "g", "SafeTail |reward|", "average |reward|")
+
+
+# Beyond the paper: what each method's tail costs in energy (docs/failures_energy.md).
+@run_figure("energy", "p99_vs_energy")
+def _figure_energy(inputs: FigureInputs) -> Figure:
+    return _p99_against_energy(inputs.summary, inputs.run)
+
+
+# Beyond the paper: every method's whole test-phase latency distribution, not four points of it.
+@run_figure("cdf", "latency_cdf")
+def _figure_cdf(inputs: FigureInputs) -> Figure:
+    return latency_cdf(inputs.requests, inputs.run, list(inputs.summary["method"]))
+
+
 def build_figures(requests: pd.DataFrame, run: RunMetadata) -> dict[str, Figure]:
-    """Build panels (a)-(g), the p99-against-energy figure and the latency CDF in memory, without
-    writing anything.
+    """Build every figure of :data:`RUN_FIGURES` in memory, without writing anything: panels
+    (a)-(g), the p99-against-energy figure and the latency CDF (and any figure added since).
 
     Args:
         requests: a checked requests table (see :func:`read_figure_inputs`).
         run: the run's metadata.
 
     Returns:
-        Panel letter ("a".."g", "energy" and "cdf") to its matplotlib Figure (on an Agg canvas).
+        Each figure's key ("a".."g", "energy", "cdf", ...) to its matplotlib Figure (on an Agg
+        canvas), in :data:`RUN_FIGURES` order.
     """
     summary = results.summarize(requests, preset=run.preset, beta=run.beta)
-    boundary = results.train_test_boundary(requests, run.beta)
+    inputs = FigureInputs(requests, summary, results.train_test_boundary(requests, run.beta), run)
     with matplotlib.rc_context(STYLE):
-        built = {"a": _latency_comparison(requests, summary, run)}
-        for panel, family in zip("bcd", results.BASELINE_FAMILIES, strict=True):
-            built[panel] = _family_comparison(summary, run, panel, family)
-        built["e"] = _episode_curve(results.access_rate_by_episode(requests, run.beta), boundary,
-                                    run, "e", "SafeTail access rate", "average access rate")
-        built["f"] = _episode_curve(results.latency_deviation_by_episode(requests, run.beta),
-                                    boundary, run, "f", "SafeTail latency deviation",
-                                    "average target − latency (s)", zero_line=True)
-        built["g"] = _episode_curve(results.abs_reward_by_episode(requests, run.beta), boundary,
-                                    run, "g", "SafeTail |reward|", "average |reward|")
-        built["energy"] = _p99_against_energy(summary, run)
-        built["cdf"] = latency_cdf(requests, run, list(summary["method"]))
-    return built
+        return {key: build(inputs) for key, build in RUN_FIGURES.items()}
 
 
 def draw_figures(

@@ -1,0 +1,49 @@
+"""A new figure of every run is one function: added here (in a fresh interpreter, to
+``results.figures.run_figures``) under ``run_figure``, ``yafs-safetail figures`` draws it beside
+the others, and every run's figures include it."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from in_process import run_usecase_here
+from source_addition import source_hook
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+#: The function, added to the module's source as it is imported: nothing on disk changes.
+HOOK = source_hook("yafs_safetail.results.figures.run_figures", """
+
+@run_figure("servers", "servers_per_request")
+def _servers_per_request(inputs):
+    figure, axes = _new_figure(inputs.run, "servers per request")
+    axes.bar(inputs.summary["method"], inputs.summary["mean_n_selected"])
+    return figure
+""")
+PROBE = """
+import json, sys
+from yafs_safetail.commands import figures
+code = figures.main([sys.argv[1], "--quiet"])
+print(json.dumps(code))
+"""
+
+
+def _figures_drawn(folder: Path, add: bool) -> list[str]:
+    done = subprocess.run([sys.executable, "-c", f"ADD = {add}\n{HOOK}\n{PROBE}", str(folder)],
+                          capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0 and json.loads(done.stdout.splitlines()[-1]) in (0, None), done.stderr[-3000:]
+    return sorted(path.name for path in (folder / "figures").iterdir())
+
+
+def test_a_new_figure_is_one_function(tmp_path):
+    done = run_usecase_here("--uc", "1", "--seed", "2", "--steps-scale", "0.02", "--no-figures",
+                            "--out", tmp_path / "run")
+    assert done.returncode == 0, done.stderr
+    shutil.copytree(tmp_path / "run", tmp_path / "plain")
+    plain = _figures_drawn(tmp_path / "plain", add=False)
+    added = _figures_drawn(tmp_path / "run", add=True)
+    assert "servers_per_request.png" not in plain and len(plain) == 9
+    assert added == sorted([*plain, "servers_per_request.png"])
