@@ -18,10 +18,10 @@ from yafs_safetail.settings.experiment import (
     ExperimentConfig,
     ExperimentError,
     LearnerOverrides,
-    learner_config,
     learner_overrides,
 )
 from yafs_safetail.settings.options import add_options, config_from_args
+from yafs_safetail.worlds.recipe import learner_config
 
 
 def test_every_field_is_declared_once_in_one_group_with_its_help():

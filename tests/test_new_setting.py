@@ -1,7 +1,8 @@
 """A new world setting is one declaration: added here (in a fresh interpreter, to
-``settings.world.WorldOverrides``, beside the ``edge.calibration.WorldSettings`` field it
-overrides) it becomes an option of the run and of the load sweep, a field of both
-configurations, a keyword of both Gymnasium environments, and part of the run id only when set.
+``settings.world.WorldSettings``, with the ``same_as`` line that lets a run override it in
+``WorldOverrides``) it becomes a checked field of every world, an option of the run and of the
+load sweep, a field of both configurations, a keyword of both Gymnasium environments, and part
+of the run id only when set.
 """
 
 from __future__ import annotations
@@ -16,21 +17,23 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 HOOK = '''
 import importlib.machinery, sys
 ADDED = {
-    "yafs_safetail.settings.world": ("    baseline_reading: str | None = setting(",
-        "    link_jitter: float | None = setting(None, 'a test-only world setting', check=POSITIVE_NUMBER, "
-        "optional=True)\\n"),
-    "yafs_safetail.edge.calibration": ('    baseline_reading: str = "paper-text"\\n',
-        "    link_jitter: float = 1.0\\n"),
+    "yafs_safetail.settings.world": [
+        ("    baseline_reading: str = setting(",
+         "    link_jitter: float = setting(1.0, 'a test-only world setting', check=POSITIVE_NUMBER)\\n"),
+        ("    baseline_reading: str | None = same_as(",
+         "    link_jitter: float | None = same_as(WorldSettings, 'link_jitter', None)\\n"),
+    ],
 }
 
 class Loader(importlib.machinery.SourceFileLoader):
     def get_data(self, path):
         data = super().get_data(path)
         if path.endswith(".py") and self.name in ADDED:
-            before, line = ADDED[self.name]
             text = data.decode()
-            assert before in text, self.name
-            data = text.replace(before, line + before, 1).encode()
+            for before, line in ADDED[self.name]:
+                assert before in text, self.name
+                text = text.replace(before, line + before, 1)
+            data = text.encode()
         return data
 
     def path_stats(self, path):  # never a cached bytecode of the unchanged source
@@ -70,8 +73,15 @@ if ADD:
         refused = None
     except ValueError as error:
         refused = str(error)
+    from yafs_safetail.edge.calibration import LANDED, CalibrationError
+    try:  # the world's own check is the declaration's too
+        dataclasses.replace(LANDED, link_jitter=0.0)
+        world_refused = None
+    except CalibrationError as error:
+        world_refused = str(error)
     report.update(
         run=run.link_jitter, run_help="--link-jitter" in run_usecase._parser().format_help(), refused=refused,
+        world_default=LANDED.link_jitter, world_refused=world_refused,
         sweep=sweep.base.link_jitter, sweep_point=sweep.point_settings(0.3).get("link_jitter"),
         sweep_help="--link-jitter" in load_sweep._parser().format_help(),
         env=env._recipe.settings.link_jitter, env_overrides=env._recipe.overrides,
@@ -96,6 +106,7 @@ def test_a_world_setting_declared_once_reaches_every_command_and_environment() -
     added, plain = _probe(True), _probe(False)
     assert added["run"] == 0.5 and added["run_help"]
     assert "--link-jitter" in str(added["refused"])
+    assert added["world_default"] == 1.0 and "link_jitter=0.0 is out of range" in str(added["world_refused"])
     assert added["sweep"] == 0.5 and added["sweep_point"] == 0.5 and added["sweep_help"]
     assert added["env"] == 0.5 and added["env_overrides"] == {"link_jitter": 0.5} and added["env_keyword"]
     assert added["contention"] == 0.5 and added["contention_world"] == 0.5

@@ -19,7 +19,8 @@ from yafs_safetail.edge.observation import Observation
 from yafs_safetail.methods.safetail.presets import get_preset
 from yafs_safetail.methods.safetail.reward import copy_price, latency_score, priced_latency_score
 from yafs_safetail.record import RequestRecord
-from yafs_safetail.settings.experiment import ExperimentConfig, learner_config
+from yafs_safetail.settings.experiment import ExperimentConfig
+from yafs_safetail.worlds.recipe import learner_config
 
 ROOT = Path(__file__).resolve().parents[1]
 N_SERVERS = 5

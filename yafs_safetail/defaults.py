@@ -56,6 +56,9 @@ def default_placement(topology: Path) -> Path:
 
 #: The learner presets (methods.safetail.presets defines each).
 PRESET_NAMES = ("paper", "paper-literal", "tuned")
+#: The paper's use cases (§V-A; edge.published re-exports them): 1 = YOLOv5 object detection,
+#: 2 = instance segmentation, 3 = audio noise removal.
+USE_CASES: tuple[int, ...] = (1, 2, 3)
 #: The paper learner's method name (its rows' ``method``).
 SAFETAIL = "SafeTail"
 #: What SafeTail's network is trained to output (``LearnerConfig.objective``): §III's target

@@ -57,6 +57,9 @@ from yafs_safetail.cli import (
     print_result,
 )
 from yafs_safetail.edge.published import USE_CASES
+
+# Each objective's class adds its name to what --objective accepts (light: the standard library).
+from yafs_safetail.methods import objectives as _objectives  # noqa: F401
 from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
 from yafs_safetail.settings.declare import field_of, setting_of
 from yafs_safetail.settings.experiment import (

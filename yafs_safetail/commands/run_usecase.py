@@ -44,6 +44,9 @@ from yafs_safetail.cli import (
 from yafs_safetail.defaults import DEFAULT_TOPOLOGY, default_placement
 from yafs_safetail.edge.topology_io import ScenarioError
 from yafs_safetail.logs import is_terminal
+
+# Each objective's class adds its name to what --objective accepts (light: the standard library).
+from yafs_safetail.methods import objectives as _objectives  # noqa: F401
 from yafs_safetail.settings.experiment import ExperimentConfig
 from yafs_safetail.settings.options import add_options, config_from_args
 

@@ -16,19 +16,21 @@ with one physically meaningful rule each, and two readings of the paper's text:
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 # What C(s_j) of Eq. 4 is; in defaults.py, since the command line lists them before anything loads.
-from yafs_safetail.defaults import BASELINE_READINGS
 from yafs_safetail.defaults import TARGET_COMPUTES as TARGET_COMPUTES
+
+# The settings themselves are declared once, on the settings floor (each field's type, default,
+# help and check); this module names the worlds made of them and reads the calibration.
+from yafs_safetail.settings.world import LOAD_STARTS as LOAD_STARTS
+from yafs_safetail.settings.world import CalibrationError as CalibrationError
+from yafs_safetail.settings.world import WorldSettings as WorldSettings
 
 #: The calibrated values and their provenance (written by ``experiments/calibrate.py``).
 CALIBRATION_FILE = Path(__file__).with_name("calibration.json")
@@ -38,7 +40,6 @@ SEED_SETS = ("world_calibration", "learner_calibration", "held_out", "fresh_held
              "uc3_scale_held_out", "mobility_report", "target_held_out",
              "method_held_out")
 
-LOAD_STARTS = ("shared", "per_server")
 WORLD_NAMES = ("landed", "calibrated", "calibrated-v1")
 
 #: The parameters calibrate.py fits, with the range it searches and what each one means.
@@ -55,78 +56,6 @@ CALIBRATED_PARAMETERS: Mapping[str, tuple[float, float, str]] = {
                                              "times the use case's median one-process edge "
                                              "compute time"),
 }
-
-
-class CalibrationError(ValueError):
-    """The calibration file is missing or malformed (one line naming the file and field)."""
-
-
-@dataclass(frozen=True)
-class WorldSettings:
-    """Every choice the world's construction depends on beyond the traces and the topology.
-
-    Attributes:
-        name: ``"landed"``, ``"calibrated"`` or a custom label (recorded in ``run.json``).
-        propagation_rtt_fraction: ρ_i per direction as a fraction of a measured ping RTT;
-            Eq. 1 charges ρ_i on the way in and on the way out, so 0.5 makes a copy pay one
-            round trip (the landed world used 1: two round trips).
-        load_start: ``"shared"``: every server's load trace starts an episode at the same
-            random minute; ``"per_server"``: each server starts at its own random minute.
-        load_peak_users: background users at a load device's busiest minute (min-max scaling
-            onto 0..this, rounded half up, capped at the maximum load).
-        bandwidth_share_exponent: a server's λ at contention level c is the measured pool of
-            level c divided by (1 + c)^this.
-        fallback_compute_multiple: the on-device fallback latency as a multiple of the use
-            case's median one-process compute time; None: the landed rule (the use case's
-            fixed bound, raised to the topology's worst-case edge latency).
-        nu: ν of Eq. 4 for every use case; None: the use case's own (the knee rule).
-        target_latency_s: a fixed target latency τ for every request (``--target-latency-s``);
-            None: Eq. 4's heuristic per request (the paper).
-        target_compute: C(s_j) of Eq. 4. ``"trace_median"``: the compute trace's median at ν
-            processes, the same for every request; ``"request"``: that median times the
-            compute model's prediction for this request's Γ_j at ν over its median prediction
-            for the trace's inputs, i.e. the median compute time at ν of *this* input (the
-            two agree when Γ holds nothing but the processes, as in use case 1).
-        baseline_reading: how MinLoad-x and MinProp-x choose (``defaults.BASELINE_READINGS``,
-            docs/calibration.md rule 5): ``"paper-text"``, the x best of all n servers (§V-B);
-            ``"original-code"``, the x best of three drawn at random for each request.
-    """
-
-    name: str = "landed"
-    propagation_rtt_fraction: float = 1.0
-    load_start: str = "shared"
-    load_peak_users: float = 4.0
-    bandwidth_share_exponent: float = 0.0
-    fallback_compute_multiple: float | None = None
-    nu: int | None = None
-    target_latency_s: float | None = None
-    target_compute: str = "trace_median"
-    baseline_reading: str = "paper-text"
-
-    def __post_init__(self) -> None:
-        checks = {
-            "propagation_rtt_fraction": 0.0 < self.propagation_rtt_fraction <= 1.0,
-            "load_start": self.load_start in LOAD_STARTS,
-            "load_peak_users": math.isfinite(self.load_peak_users) and self.load_peak_users >= 0,
-            "bandwidth_share_exponent": math.isfinite(self.bandwidth_share_exponent)
-            and 0.0 <= self.bandwidth_share_exponent <= 2.0,
-            "fallback_compute_multiple": self.fallback_compute_multiple is None
-            or (math.isfinite(self.fallback_compute_multiple) and self.fallback_compute_multiple > 0),
-            "nu": self.nu is None or (isinstance(self.nu, int) and not isinstance(self.nu, bool)
-                                      and 1 <= self.nu <= 5),
-            "target_latency_s": self.target_latency_s is None
-            or (math.isfinite(self.target_latency_s) and self.target_latency_s > 0),
-            "target_compute": self.target_compute in TARGET_COMPUTES,
-            "baseline_reading": self.baseline_reading in BASELINE_READINGS,
-        }
-        bad = [name for name, ok in checks.items() if not ok]
-        if bad:
-            raise CalibrationError(
-                f"world settings {self.name!r}: {bad[0]}={getattr(self, bad[0])!r} is out of range"
-            )
-
-    def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
 
 
 LANDED = WorldSettings()

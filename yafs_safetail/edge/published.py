@@ -12,8 +12,9 @@ from __future__ import annotations
 from types import MappingProxyType
 from typing import Final
 
-USE_CASES: Final[tuple[int, ...]] = (1, 2, 3)
-"""1 = YOLOv5 object detection, 2 = instance segmentation, 3 = audio noise removal (paper §V-A)."""
+# 1 = YOLOv5 object detection, 2 = instance segmentation, 3 = audio noise removal (paper §V-A): in
+# defaults.py, since the settings (the lowest floor) and the command line list them.
+from yafs_safetail.defaults import USE_CASES as USE_CASES
 
 MAX_PROCESSES: Final[int] = 5
 """Parallel processes measured per server, k = 1..5 (paper §V-A "Modeling Computation Latency")."""

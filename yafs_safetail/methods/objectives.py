@@ -25,6 +25,8 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from yafs_safetail.settings.experiment import OBJECTIVE_NAMES
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -86,6 +88,7 @@ class Objective:
         super().__init_subclass__(**kwargs)
         if "name" in cls.__dict__:
             _REGISTRY[cls.name] = cls()
+            OBJECTIVE_NAMES.add(cls.name)  # what --objective accepts (declared a floor below)
 
     def __repr__(self) -> str:
         return f"<objective {self.name}>"

@@ -50,37 +50,73 @@ class Check:
     """What values a setting accepts, for the command line and for values set in Python.
 
     Attributes:
-        what: the accepted values in words (``"a positive number"``), for error messages.
+        description: the accepted values in words (``"a positive number"``), for error
+            messages (:attr:`what`); a callable when they are :class:`Names` a higher floor adds to.
         accepts: whether a Python value is acceptable (``None`` is handled by the caller).
         parse: the argparse ``type``: text to value, raising ``argparse.ArgumentTypeError``.
         choices: the accepted values when they are a short list (argparse shows them).
     """
 
-    what: str
+    description: str | Callable[[], str]
     accepts: Callable[[Any], bool]
     parse: Callable[[str], Any] | None = None
-    choices: tuple[Any, ...] | None = None
+    choices: Sequence[Any] | None = None
+
+    @property
+    def what(self) -> str:
+        """The accepted values in words, as they are now."""
+        return self.description() if callable(self.description) else self.description
 
 
-def _is_number(value: Any) -> bool:
+class Names(Sequence[str]):
+    """Names a higher floor adds to as it defines them, so that a setting declared on this floor
+    accepts every one without importing that floor (``settings.experiment.OBJECTIVE_NAMES``: each
+    class of ``methods.objectives`` adds its name). A :func:`one_of` check, argparse's choices and
+    the help read it when they run, not when the setting is declared."""
+
+    def __init__(self, names: Sequence[str] = ()) -> None:
+        self._names: list[str] = list(names)
+
+    def add(self, name: str) -> None:
+        """Add ``name`` (once; the order is the order names are first added)."""
+        if name not in self._names:
+            self._names.append(name)
+
+    def __getitem__(self, index: Any) -> Any:
+        return self._names[index]
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __repr__(self) -> str:
+        return f"Names({self._names!r})"
+
+
+def is_number(value: Any) -> bool:
+    """A finite int or float (never a bool): what every numeric check starts from."""
     return not isinstance(value, bool) and isinstance(value, float | int) and math.isfinite(value)
 
 
-def _is_integer(value: Any) -> bool:
+def is_integer(value: Any) -> bool:
+    """An int (never a bool)."""
     return not isinstance(value, bool) and isinstance(value, int)
 
 
-POSITIVE_NUMBER = Check("a positive number", lambda v: _is_number(v) and v > 0, positive_float)
-NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: _is_number(v) and v >= 0,
+POSITIVE_NUMBER = Check("a positive number", lambda v: is_number(v) and v > 0, positive_float)
+NON_NEGATIVE_NUMBER = Check("a non-negative number", lambda v: is_number(v) and v >= 0,
                             non_negative_float)
-POSITIVE_INTEGER = Check("a positive integer", lambda v: _is_integer(v) and v >= 1, positive_int)
-NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: _is_integer(v) and v >= 0,
+POSITIVE_INTEGER = Check("a positive integer", lambda v: is_integer(v) and v >= 1, positive_int)
+NON_NEGATIVE_INTEGER = Check("a non-negative integer", lambda v: is_integer(v) and v >= 0,
                              non_negative_int)
 BOOLEAN = Check("true or false", lambda v: isinstance(v, bool))
 
 
 def one_of(choices: Sequence[Any], parse: Callable[[str], Any] | None = None) -> Check:
-    """A check for one of a few values (argparse lists them; ``parse`` turns text into one)."""
+    """A check for one of a few values (argparse lists them; ``parse`` turns text into one).
+    :class:`Names` stay live: the values accepted are those added by the time a value is checked."""
+    if isinstance(choices, Names):
+        names = choices
+        return Check(lambda: "one of " + ", ".join(names), lambda v: isinstance(v, str) and v in names, parse, names)
     listed = ", ".join(str(c) for c in choices)
     return Check(f"one of {listed}", lambda v: not isinstance(v, bool) and v in choices, parse, tuple(choices))
 
@@ -99,7 +135,7 @@ def _redundancy_levels(text: str) -> tuple[int, ...]:
 FORMATS = Check(f"a list of {', '.join(FIGURE_FORMATS)}",
                 lambda v: isinstance(v, tuple) and bool(v) and all(x in FIGURE_FORMATS for x in v),
                 figure_formats)
-LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(_is_integer(x) for x in v),
+LEVELS = Check("integers", lambda v: isinstance(v, tuple | list) and all(is_integer(x) for x in v),
                _redundancy_levels)
 
 
@@ -178,9 +214,22 @@ class Setting:
 _SETTING = "yafs_safetail.setting"
 
 
+class _Required:
+    """The default of a setting that has none (:data:`REQUIRED`)."""
+
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+#: A setting's default when every instance must give it (a learner's hyperparameters, say).
+REQUIRED: Any = _Required()
+
+
 def setting(default: Any, help: str, **kwargs: Any) -> Any:
-    """A dataclass field with its :class:`Setting` (``kwargs`` are the Setting's)."""
-    return field(default=default, metadata={_SETTING: Setting(help=help, **kwargs)})
+    """A dataclass field with its :class:`Setting` (``kwargs`` are the Setting's); ``default``
+    :data:`REQUIRED`: a field without a default."""
+    about = {_SETTING: Setting(help=help, **kwargs)}
+    return field(metadata=about) if default is REQUIRED else field(default=default, metadata=about)
 
 
 def same_as(config_class: type, name: str, default: Any = dataclasses.MISSING, **changes: Any) -> Any:
@@ -192,11 +241,13 @@ def same_as(config_class: type, name: str, default: Any = dataclasses.MISSING, *
         config_class: the configuration that declares the setting.
         name: its field there.
         default: this configuration's default, when it differs (e.g. None where the other
-            configuration has a file).
+            configuration has a file; :data:`REQUIRED`: none).
         changes: :class:`Setting` attributes that differ here (``flag=""``: no option).
     """
     item = field_of(config_class, name)
     about = dataclasses.replace(setting_of(item), **changes)
+    if default is REQUIRED:
+        return field(metadata={_SETTING: about})
     return field(default=item.default if default is dataclasses.MISSING else default, metadata={_SETTING: about})
 
 
@@ -283,6 +334,17 @@ def check_config(config: Any, style: str = "option") -> None:
             the configuration's own error class (its ``setting_error``) when it has one.
     """
     error: type[ValueError] = getattr(type(config), "setting_error", SettingError)
+    name = refused_field(config)
+    if name is not None:
+        about = setting_of(field_of(type(config), name))
+        assert about.check is not None
+        raise error(f"{about.label(name, style)}: expected {about.check.what}, got {getattr(config, name)!r}")
+
+
+def refused_field(config: Any) -> str | None:
+    """The first field of ``config`` (a dataclass declared with :func:`setting`) whose value its
+    declared check refuses, or None: the checks themselves, for a configuration that words its
+    own error (``settings.world.WorldSettings``, ``methods.safetail.presets.LearnerConfig``)."""
     for item in fields(config):
         if not has_setting(item):  # a part checked on its own (a sweep's base world)
             continue
@@ -291,7 +353,8 @@ def check_config(config: Any, style: str = "option") -> None:
         if about.check is None or (value is None and about.optional):
             continue
         if not about.check.accepts(value):
-            raise error(f"{about.label(item.name, style)}: expected {about.check.what}, got {value!r}")
+            return item.name
+    return None
 
 
 def keyword_names(*groups: type) -> tuple[str, ...]:

@@ -18,7 +18,7 @@ command line derived from it in ``settings.options``): the command-line options 
 (:func:`add_options`), the configuration from parsed options (:func:`config_from_args`), the
 checks at run start (:func:`check_config`), the campaign grid's settable fields and the run id
 (``runs.grid``: :data:`RESULT_FIELDS`), the Gymnasium environment's keywords (``sim.env``), the
-learner's hyperparameters (:func:`learner_config`) and ``run.json``'s record of what was
+learner's hyperparameters (``worlds.recipe.learner_config``) and ``run.json``'s record of what was
 overridden (:func:`learner_overrides`). The world's overrides are ``settings.world``'s, shared
 with the contention world.
 
@@ -27,7 +27,6 @@ Adding a setting is one field in one group (CONTRIBUTING.md shows an example).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -44,11 +43,11 @@ from yafs_safetail.defaults import (
     DEFAULT_TOPOLOGY,
     DEFAULT_TRACE_DIR,
     MOBILITY_MODELS,
+    OBJECTIVES,
     PRESET_NAMES,
+    USE_CASES,
     WALKING_SPEED_MPS,
 )
-from yafs_safetail.edge.published import USE_CASES
-from yafs_safetail.methods.objectives import objective_names
 from yafs_safetail.settings.declare import (
     BOOLEAN,
     FORMATS,
@@ -59,29 +58,35 @@ from yafs_safetail.settings.declare import (
     POSITIVE_NUMBER,
     PROBABILITY_BELOW_ONE,
     SPEED_RANGE,
+    Names,
     SettingError,
     one_of,
     setting,
     setting_of,
 )
-from yafs_safetail.settings.world import WorldOverrides
+from yafs_safetail.settings.world import WorldOverrides, WorldSettings
 
 if TYPE_CHECKING:
-    from yafs_safetail.edge.calibration import WorldSettings
+    # The one import of a higher floor (tests/test_layers.py names it): a --method spec becomes
+    # a user's policy when the options are parsed.
     from yafs_safetail.methods.registry import UserMethod
-    from yafs_safetail.methods.safetail.presets import LearnerConfig
 
 
 __all__ = [
     "ExperimentError", "Task", "WorldInputs", "WorldOverrides", "FailuresAndPower", "Mobility", "WorldSetup",
     "LearnerOverrides", "Output", "ExperimentConfig", "GROUPS", "FIRST_RESULT_FIELDS", "LATER_RESULT_FIELDS",
-    "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS", "learner_overrides", "learner_config",
+    "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS", "OBJECTIVE_NAMES", "learner_overrides",
     "expand_method_spec",
 ]
 
 
 class ExperimentError(SettingError):
     """A bad experiment setting (one line naming the setting and what is wrong)."""
+
+
+#: The objectives ``--objective`` accepts: the project's (``defaults.OBJECTIVES``), and every
+#: class ``methods.objectives`` defines, which adds its name when defined (a floor above this one).
+OBJECTIVE_NAMES = Names(OBJECTIVES)
 
 
 # ----------------------------------------------------------------------------- the groups
@@ -225,7 +230,7 @@ class LearnerOverrides:
         "preset's default), q-target (the original code's Q-style targets, deviation D18) or, beyond the paper, value (the network regresses each "
         "action's latency score, less the D15 prices when set, and copies to busy servers are priced "
         "at dispatch: the contention world's SafeTail-CA learner; deviations D13, D15 in the "
-        "documentation)", check=one_of(objective_names()),
+        "documentation)", check=one_of(OBJECTIVE_NAMES),
         optional=True, deprecated=("--learner",))
     n_networks: int | None = setting(
         None, "with --objective value: how many value networks, each from its own initial weights, "
@@ -311,21 +316,3 @@ def learner_overrides(config: LearnerOverrides) -> dict[str, Any]:
     """The learner hyperparameters this configuration sets (field: value), for ``run.json``."""
     return {item.name: getattr(config, item.name) for item in fields(LearnerOverrides)
             if getattr(config, item.name) is not None}
-
-
-def learner_config(config: ExperimentConfig) -> tuple[LearnerConfig, LearnerConfig]:
-    """The preset at full budget, and the learner this run trains: the preset with the run's
-    training steps and :class:`LearnerOverrides` applied.
-
-    Raises:
-        ValueError: an unknown preset or use case.
-    """
-    from yafs_safetail.methods.safetail.presets import get_preset, scaled_steps
-
-    full = get_preset(config.preset, config.use_case)
-    learner = get_preset(config.preset, config.use_case,
-                         train_steps=scaled_steps(full.train_steps, config.steps_scale))
-    overrides = learner_overrides(config)
-    # A number the user gave as an integer is still the float hyperparameter the preset has.
-    typed = {name: type(getattr(learner, name))(value) for name, value in overrides.items()}
-    return full, dataclasses.replace(learner, **typed)

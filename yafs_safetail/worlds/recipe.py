@@ -30,20 +30,26 @@ from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.edge.world import EdgeWorld
 from yafs_safetail.edge.world_parts import OnWorldParts, WorldParts, read_world_parts
-from yafs_safetail.methods.safetail.presets import PRESET_WORLDS, LearnerConfig, scaled_steps
+from yafs_safetail.methods.safetail.presets import (
+    PRESET_WORLDS,
+    LearnerConfig,
+    get_preset,
+    scaled_steps,
+)
 from yafs_safetail.settings.declare import check_config, field_of, setting_of
 from yafs_safetail.settings.experiment import (
     ExperimentConfig,
     ExperimentError,
     Mobility,
-    learner_config,
+    learner_overrides,
 )
 from yafs_safetail.settings.input_paths import resolve_input
 from yafs_safetail.settings.world import WorldOverrideError, apply_world_overrides
 
 __all__ = [
     "TRAIN", "TEST", "WorldRecipe", "input_file", "traces_folder", "failure_settings", "energy_model",
-    "MobilitySettings", "check_mobility_settings", "mobility_plan", "world_recipe", "make_world",
+    "MobilitySettings", "check_mobility_settings", "mobility_plan", "learner_config", "world_recipe",
+    "make_world",
 ]
 
 #: The phases a run's worlds are drawn for (independent random streams).
@@ -226,6 +232,23 @@ def mobility_plan(config: MobilitySettings, scenario: EdgeScenario, style: str =
     speeds = tuple(float(v) for v in config.speed_mps)
     return MobilityPlan(random_waypoint=RandomWaypoint(
         default_area_m(scenario, DEFAULT_SIGNAL_RULE), (speeds[0], speeds[1]), float(config.pause_s)))
+
+
+def learner_config(config: ExperimentConfig) -> tuple[LearnerConfig, LearnerConfig]:
+    """The preset at full budget, and the learner this run trains: the preset with the run's
+    training steps and ``settings.experiment.LearnerOverrides`` applied (here, where the
+    configuration meets the presets, a floor above the settings).
+
+    Raises:
+        ValueError: an unknown preset or use case.
+    """
+    full = get_preset(config.preset, config.use_case)
+    learner = get_preset(config.preset, config.use_case,
+                         train_steps=scaled_steps(full.train_steps, config.steps_scale))
+    overrides = learner_overrides(config)
+    # A number the user gave as an integer is still the float hyperparameter the preset has.
+    typed = {name: type(getattr(learner, name))(value) for name, value in overrides.items()}
+    return full, dataclasses.replace(learner, **typed)
 
 
 def world_recipe(config: ExperimentConfig, style: str = "option") -> WorldRecipe:
