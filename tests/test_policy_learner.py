@@ -135,7 +135,7 @@ def test_unknown_preset_and_use_case() -> None:
 def test_config_validation_and_roundtrip() -> None:
     c = get_preset("tuned", 2)
     assert LearnerConfig.from_dict(json.loads(json.dumps(c.to_dict()))) == c
-    with pytest.raises(ValueError, match="LearnerConfig.kappa must be an integer >= 1"):
+    with pytest.raises(ValueError, match="LearnerConfig.kappa must be a positive integer"):
         dataclasses.replace(c, kappa=0)
     with pytest.raises(ValueError, match="replay_capacity"):
         dataclasses.replace(c, replay_capacity=c.kappa - 1)
@@ -447,7 +447,7 @@ def test_one_value_network_keeps_the_single_network_layout() -> None:
 def test_several_networks_only_with_the_value_objective() -> None:
     with pytest.raises(ValueError, match="n_networks \\(2\\) must be 1 with the 'target-vector' objective"):
         tiny_config(n_networks=2)
-    with pytest.raises(ValueError, match="n_networks must be an integer >= 1"):
+    with pytest.raises(ValueError, match="n_networks must be a positive integer"):
         tiny_config(objective="value", n_networks=0)
 
 

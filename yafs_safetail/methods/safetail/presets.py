@@ -20,7 +20,22 @@ from yafs_safetail.defaults import OBJECTIVES as OBJECTIVES
 from yafs_safetail.defaults import PRESET_NAMES as PRESET_NAMES
 from yafs_safetail.edge import published
 from yafs_safetail.methods.objectives import Q_TARGET_DISCOUNT as Q_TARGET_DISCOUNT
-from yafs_safetail.methods.objectives import Objective, objective_named, objective_names
+from yafs_safetail.methods.objectives import Objective, objective_named
+from yafs_safetail.settings.declare import (
+    POSITIVE_INTEGER,
+    POSITIVE_NUMBER,
+    REQUIRED,
+    Check,
+    field_of,
+    is_integer,
+    is_number,
+    one_of,
+    refused_field,
+    same_as,
+    setting,
+    setting_of,
+)
+from yafs_safetail.settings.experiment import LearnerOverrides
 
 #: The world each preset runs in (``yafs_safetail.edge.calibration``): ``paper-literal`` keeps the
 #: first release's world so that its results stay as they were.
@@ -62,114 +77,89 @@ PAPER_LEARNING_RATES = {1: 3e-4, 2: 1e-3, 3: 1e-5}
 REPLAY_SAMPLING = ("recent", "uniform")
 
 
+#: ε and its decay: probabilities.
+UNIT_INTERVAL = Check("a number in [0, 1]", lambda v: is_number(v) and 0.0 <= v <= 1.0)
+#: The FNN's hidden layers: at least one, each at least one unit wide.
+LAYER_WIDTHS = Check("non-empty positive widths",
+                     lambda v: isinstance(v, tuple) and bool(v) and all(is_integer(w) and w >= 1 for w in v))
+
+
 @dataclass(frozen=True, slots=True)
 class LearnerConfig:
     """Everything the learner and the experiment need to know about one preset.
 
-    Attributes:
-        name: Preset name ("paper", "tuned", or a custom label).
-        use_case: 1, 2 or 3.
-        learning_rate: Adam's learning rate.
-        delta: δ of Eq. 5.
-        epsilon_start: ε before any training (the paper: 1, full exploration).
-        epsilon_decay: Subtracted from ε after every training round.
-        epsilon_min: ε never goes below this.
-        kappa: κ, a training round runs every κ stored tuples.
-        episode_steps: α_s, steps (requests) per episode.
-        n_episodes: α_e, number of training episodes.
-        beta: β, the number of steps each plotted point averages.
-        train_steps: Training-phase length in steps (the paper's plots: 50·β).
-        test_steps: Test-phase length in steps (the paper's plots: 20·β).
-        hidden_widths: Widths of the FNN's hidden ReLU layers.
-        replay_capacity: The replay memory holds the most recent ``replay_capacity`` tuples;
-            ``kappa`` means exactly the κ tuples collected since the last round.
-        epochs_per_round: ``replay_sampling="recent"``: passes over the stored tuples per round.
-        batch_size: Minibatch size (tuples shuffled or drawn with the run's generator).
-        epsilon_per_step: ε decreases by ``epsilon_decay`` after every stored tuple (the
-            original code) instead of after every training round (the paper's wording).
-        replay_sampling: ``"recent"``: a round makes ``epochs_per_round`` shuffled passes over
-            the stored tuples; ``"uniform"``: a round makes ``updates_per_round`` Adam updates,
-            each on ``batch_size`` tuples drawn at random (without replacement) from the memory.
-        updates_per_round: Adam updates per round for ``replay_sampling="uniform"``.
-        objective: an objective's name (``objectives.objective_names()``; the project's are
-            :data:`OBJECTIVES`): every preset trains on §III's ``"target-vector"``
-            (the paper's text specifies the method: the spec owner's decision of 2026-11-28);
-            ``"q-target"`` is the original code's targets (D18), by name only.
-        n_networks: With an objective that averages networks (``"value"``), how many networks (same layers, their own
-            initial weights, trained on the same minibatches) predict each action's value;
-            decisions use the mean of their predictions, meant to vary less from seed to seed
-            than one network's (D13 measures it). The §III objective has one network.
-        energy_price_per_j: subtracted from the reward per joule the request's copies cost
-            (beyond the paper, D15; 0: Eq. 5).
-        failure_penalty: subtracted from the reward of a request that ended without a reply
-            (beyond the paper, D15; 0: Eq. 5).
+    Each field is declared once with ``settings.declare.setting`` (its help says what it means,
+    its check what it accepts); the hyperparameters a run may override are
+    ``settings.experiment.LearnerOverrides``' fields of the same names (``same_as``), so their
+    checks are written there once. A value a check refuses is a ``ValueError`` naming the field;
+    the rules between fields are :meth:`__post_init__`'s.
     """
 
-    name: str
-    use_case: int
-    learning_rate: float
-    delta: float
-    epsilon_start: float
-    epsilon_decay: float
-    epsilon_min: float
-    kappa: int
-    episode_steps: int
-    n_episodes: int
-    beta: int
-    train_steps: int
-    test_steps: int
-    hidden_widths: tuple[int, ...]
-    replay_capacity: int
-    epochs_per_round: int
-    batch_size: int
-    epsilon_per_step: bool = False
-    replay_sampling: str = "recent"
-    updates_per_round: int = 1
-    objective: str = "target-vector"
-    n_networks: int = 1
-    energy_price_per_j: float = 0.0
-    failure_penalty: float = 0.0
+    name: str = setting(REQUIRED, 'preset name ("paper", "tuned", or a custom label)')
+    use_case: int = setting(REQUIRED, "1, 2 or 3")
+    learning_rate: float = same_as(LearnerOverrides, "learning_rate", REQUIRED, optional=False,
+                                   help="Adam's learning rate")
+    delta: float = setting(REQUIRED, "δ of Eq. 5", check=POSITIVE_NUMBER)
+    epsilon_start: float = setting(REQUIRED, "ε before any training (the paper: 1, full exploration)",
+                                   check=UNIT_INTERVAL)
+    epsilon_decay: float = setting(REQUIRED, "subtracted from ε after every training round", check=UNIT_INTERVAL)
+    epsilon_min: float = setting(REQUIRED, "ε never goes below this", check=UNIT_INTERVAL)
+    kappa: int = setting(REQUIRED, "κ, a training round runs every κ stored tuples", check=POSITIVE_INTEGER)
+    episode_steps: int = setting(REQUIRED, "α_s, steps (requests) per episode", check=POSITIVE_INTEGER)
+    n_episodes: int = setting(REQUIRED, "α_e, number of training episodes", check=POSITIVE_INTEGER)
+    beta: int = setting(REQUIRED, "β, the number of steps each plotted point averages", check=POSITIVE_INTEGER)
+    train_steps: int = setting(REQUIRED, "training-phase length in steps (the paper's plots: 50·β)",
+                               check=POSITIVE_INTEGER)
+    test_steps: int = setting(REQUIRED, "test-phase length in steps (the paper's plots: 20·β)",
+                              check=POSITIVE_INTEGER)
+    hidden_widths: tuple[int, ...] = setting(REQUIRED, "widths of the FNN's hidden ReLU layers",
+                                             check=LAYER_WIDTHS)
+    replay_capacity: int = setting(
+        REQUIRED, "the replay memory holds the most recent replay_capacity tuples; kappa means exactly "
+        "the κ tuples collected since the last round", check=POSITIVE_INTEGER)
+    epochs_per_round: int = setting(REQUIRED, 'replay_sampling="recent": passes over the stored tuples per '
+                                    "round", check=POSITIVE_INTEGER)
+    batch_size: int = setting(REQUIRED, "minibatch size (tuples shuffled or drawn with the run's generator)",
+                              check=POSITIVE_INTEGER)
+    epsilon_per_step: bool = setting(
+        False, "ε decreases by epsilon_decay after every stored tuple (the original code) instead of "
+        "after every training round (the paper's wording)")
+    replay_sampling: str = setting(
+        "recent", '"recent": a round makes epochs_per_round shuffled passes over the stored tuples; '
+        '"uniform": a round makes updates_per_round Adam updates, each on batch_size tuples drawn at '
+        "random (without replacement) from the memory", check=one_of(REPLAY_SAMPLING))
+    updates_per_round: int = setting(1, 'Adam updates per round for replay_sampling="uniform"',
+                                     check=POSITIVE_INTEGER)
+    # Every preset trains on §III's "target-vector" (the paper's text specifies the method: the
+    # spec owner's decision of 2026-11-28); "q-target" is the original code's targets (D18), by name only.
+    objective: str = same_as(LearnerOverrides, "objective", "target-vector", optional=False,
+                             help="an objective's name (methods.objectives.objective_names(); the "
+                             "project's are OBJECTIVES)")
+    n_networks: int = same_as(
+        LearnerOverrides, "n_networks", 1, optional=False,
+        help="with an objective that averages networks (value), how many networks (same layers, their own "
+        "initial weights, trained on the same minibatches) predict each action's value; decisions use "
+        "the mean of their predictions, meant to vary less from seed to seed than one network's (D13 "
+        "measures it); the §III objective has one network")
+    energy_price_per_j: float = same_as(
+        LearnerOverrides, "energy_price_per_j", 0.0, optional=False,
+        help="subtracted from the reward per joule the request's copies cost (beyond the paper, D15; 0: Eq. 5)")
+    failure_penalty: float = same_as(
+        LearnerOverrides, "failure_penalty", 0.0, optional=False,
+        help="subtracted from the reward of a request that ended without a reply (beyond the paper, "
+        "D15; 0: Eq. 5)")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "hidden_widths", tuple(int(w) for w in self.hidden_widths))
-        positive_floats = ("learning_rate", "delta")
-        for field in positive_floats:
-            value = getattr(self, field)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"LearnerConfig.{field} must be finite and > 0, got {value!r}")
-        for field in ("epsilon_start", "epsilon_decay", "epsilon_min"):
-            value = getattr(self, field)
-            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-                raise ValueError(f"LearnerConfig.{field} must be in [0, 1], got {value!r}")
+        bad = refused_field(self)  # each field's declared check
+        if bad is not None:
+            check = setting_of(field_of(LearnerConfig, bad)).check
+            assert check is not None
+            raise ValueError(f"LearnerConfig.{bad} must be {check.what}, got {getattr(self, bad)!r}")
         if self.epsilon_min > self.epsilon_start:
             raise ValueError(
                 f"LearnerConfig.epsilon_min ({self.epsilon_min}) exceeds epsilon_start "
                 f"({self.epsilon_start})"
-            )
-        for field in ("energy_price_per_j", "failure_penalty"):
-            value = getattr(self, field)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"LearnerConfig.{field} must be finite and >= 0, got {value!r}")
-        positive_ints = ("kappa", "episode_steps", "n_episodes", "beta", "train_steps",
-                         "test_steps", "replay_capacity", "epochs_per_round", "batch_size",
-                         "updates_per_round", "n_networks")
-        for field in positive_ints:
-            value = getattr(self, field)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"LearnerConfig.{field} must be an integer >= 1, got {value!r}")
-        if not self.hidden_widths or min(self.hidden_widths) < 1:
-            raise ValueError(
-                f"LearnerConfig.hidden_widths must be non-empty positive widths, got "
-                f"{self.hidden_widths!r}"
-            )
-        if self.replay_sampling not in REPLAY_SAMPLING:
-            raise ValueError(
-                f"LearnerConfig.replay_sampling must be one of {REPLAY_SAMPLING}, got "
-                f"{self.replay_sampling!r}"
-            )
-        if self.objective not in objective_names():
-            raise ValueError(
-                f"LearnerConfig.objective must be one of {objective_names()}, got {self.objective!r}"
             )
         if self.n_networks > 1 and not self.learning_objective.averages_networks:
             raise ValueError(
