@@ -1,4 +1,7 @@
-"""The results folder and everything computed from it (never from the simulator).
+"""The results folder and everything computed from it (never from the simulator): tables, reports, figures.
+
+It serves both worlds alike, the paper's single-user runs and the contention world's sweeps,
+reading only their files and tables (beside ``sim`` and ``contention``, below ``runs``).
 
 * ``files``: names, schemas, atomic writing, checked readers (``requests.csv``, ``run.json``,
   ``summary.csv``);

@@ -1,13 +1,16 @@
-"""Every setting of the project, declared once, and the world a configuration makes.
+"""Every setting of the project, declared once: the run's, the world's, the contention world's parts.
 
-The floor below ``sim``, ``contention`` and ``runs`` (docs/architecture.md):
+It serves every world and engine from the lowest floor (the standard library and ``defaults``
+only; docs/architecture.md, "Layers"): ``edge``, ``methods``, ``worlds``, both engines and the runs
+read their settings and checks from here.
 
 - ``declare``: how a setting is declared (:func:`~yafs_safetail.settings.declare.setting`:
   name, type, default, help, check, whether it changes results) and what is derived from the
   declarations (command-line options, configurations from them, checks, titles);
 - ``parse``: text to value for the command line (standard library only);
-- ``world``: the world's settings a run may override (``WorldOverrides``), declared once for
-  the experiment, the contention world, the sweeps and both Gymnasium environments;
+- ``world``: every world's settings (``WorldSettings``) and the ones a run may override
+  (``WorldOverrides``), declared once for the experiment, the contention world, the sweeps and
+  both Gymnasium environments;
 - ``experiment``: the single-user run's configuration (``ExperimentConfig``).
 
 Nothing is imported here: the commands build their parsers from ``declare``, ``world`` and
