@@ -34,7 +34,8 @@ def build_score_figure(table: pd.DataFrame, title: str) -> Figure:
         figure = Figure(figsize=(7.5, 0.45 * len(scenarios) + 1.6))
         FigureCanvasAgg(figure)
         axes = figure.subplots()
-        offsets = np.linspace(-0.25, 0.25, len(roles)) if len(roles) > 1 else np.zeros(1)
+        # The legend's first role on top of each scenario's row, as the legend reads.
+        offsets = np.linspace(0.25, -0.25, len(roles)) if len(roles) > 1 else np.zeros(1)
         for offset, role in zip(offsets, roles, strict=True):
             rows = table[table["role"] == role].set_index("scenario").reindex(scenarios)
             ratio = rows["ratio_p99_s"].to_numpy(dtype=float)
