@@ -30,8 +30,8 @@ BOOTSTRAP_SEED = 20261128
 _CHUNK = 50
 #: The built-in methods the "best fixed method" is chosen from (the one with the lowest p99).
 FIXED = re.compile(r"^(Rand|MinLoad|MinProp)-\d+$")
-#: The figures of a method's row, in the report's order.
-FIGURES = ("p50_s", "p99_s", "servers", "energy_j")
+#: The figures whose ratios the report gives, with their intervals.
+RATIO_FIGURES = ("p50_s", "p99_s")
 
 
 def scenario_requests(folder: Path, paper_world: bool) -> pd.DataFrame:
@@ -48,13 +48,16 @@ def scenario_requests(folder: Path, paper_world: bool) -> pd.DataFrame:
     return frame[["method", "request", "latency_s", "servers", "energy_j"]].reset_index(drop=True)
 
 
-def _figure(values: np.ndarray, name: str) -> np.ndarray:
-    """A figure over the last axis: a percentile of latencies, or a mean."""
-    if name == "p50_s":
-        return np.percentile(values, 50, axis=-1)
-    if name == "p99_s":
-        return np.percentile(values, 99, axis=-1)
-    return np.mean(values, axis=-1)
+_PERCENTILES = {"p50_s": 50.0, "p99_s": 99.0}
+
+
+def _figures(values: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """Each figure over the last axis, stacked last: a percentile of latencies (every percentile
+    asked in one call, one partition), or a mean."""
+    asked = [name for name in names if name in _PERCENTILES]
+    found = dict(zip(asked, np.percentile(values, [_PERCENTILES[name] for name in asked], axis=-1), strict=True)) \
+        if asked else {}
+    return np.stack([found[name] if name in found else np.mean(values, axis=-1) for name in names], axis=-1)
 
 
 def block_length(n_requests: int) -> int:
@@ -78,22 +81,37 @@ def _resample_indices(lengths: Sequence[int], rng: np.random.Generator, n_resamp
     return np.concatenate(parts, axis=1)
 
 
+def resampled_figures(values: Mapping[str, Sequence[np.ndarray]], names: Sequence[str], rng: np.random.Generator,
+                      n_resamples: int = RESAMPLES) -> dict[str, np.ndarray]:
+    """Per method, each figure over ``n_resamples`` moving-block resamples of the requests, the
+    same resamples for every method (paired): ``(n_resamples, len(names))``. ``values[m][s]``
+    is method m's values in seed s, request by request in the requests' order."""
+    lengths = [len(part) for part in next(iter(values.values()))]
+    if any([len(part) for part in parts] != lengths for parts in values.values()):
+        raise ValueError("paired resamples: the methods met different numbers of requests")
+    joined = {method: np.concatenate(parts) for method, parts in values.items()}
+    chunks: dict[str, list[np.ndarray]] = {method: [] for method in values}
+    for start in range(0, n_resamples, _CHUNK):
+        index = _resample_indices(lengths, rng, min(_CHUNK, n_resamples - start))
+        for method, all_values in joined.items():
+            chunks[method].append(_figures(all_values[index], names))
+    return {method: np.concatenate(parts) for method, parts in chunks.items()}
+
+
+def _ratio(mine: np.ndarray, theirs: np.ndarray, resampled_mine: np.ndarray,
+           resampled_theirs: np.ndarray) -> tuple[float, float, float]:
+    low, high = np.percentile(resampled_mine / resampled_theirs, [2.5, 97.5])
+    return float(mine / theirs), float(low), float(high)
+
+
 def paired_ratio(mine: Sequence[np.ndarray], theirs: Sequence[np.ndarray], figure: str,
                  rng: np.random.Generator, n_resamples: int = RESAMPLES) -> tuple[float, float, float]:
     """figure(mine) / figure(theirs) over every seed's requests, and its paired 95% moving-block
     bootstrap interval. ``mine[s]`` and ``theirs[s]`` are seed s's values request by request, in
     the requests' order (the same requests)."""
-    lengths = [len(values) for values in mine]
-    if [len(values) for values in theirs] != lengths:
-        raise ValueError("paired_ratio: the two methods met different numbers of requests")
-    a, b = np.concatenate(mine), np.concatenate(theirs)
-    ratio = float(_figure(a, figure) / _figure(b, figure))
-    ratios = []
-    for start in range(0, n_resamples, _CHUNK):
-        index = _resample_indices(lengths, rng, min(_CHUNK, n_resamples - start))
-        ratios.append(_figure(a[index], figure) / _figure(b[index], figure))
-    low, high = np.percentile(np.concatenate(ratios), [2.5, 97.5])
-    return ratio, float(low), float(high)
+    resampled = resampled_figures({"mine": mine, "theirs": theirs}, [figure], rng, n_resamples)
+    point = {name: _figures(np.concatenate(parts), [figure])[0] for name, parts in (("mine", mine), ("theirs", theirs))}
+    return _ratio(point["mine"], point["theirs"], resampled["mine"][:, 0], resampled["theirs"][:, 0])
 
 
 def _best_fixed(figures: pd.DataFrame) -> str | None:
@@ -144,13 +162,16 @@ def score_table(requests: Mapping[str, Sequence[pd.DataFrame]], mine: str, least
             for method, part in pooled.items()}).T
         roles = {mine: "your policy", **{method: role for role, method in
                                          comparators(methods, mine, least_loaded, figures).items()}}
+        # One set of resamples for the scenario: every method's figures on the same requests.
+        resampled = resampled_figures({method: [part["latency_s"].to_numpy() for part in by_method[method]]
+                                       for method in roles}, RATIO_FIGURES, rng)
         for method, role in roles.items():
             row: dict[str, object] = {"scenario": scenario, "role": role, "method": method,
                                       "seeds": len(seeds), "requests": len(pooled[method]),
                                       **figures.loc[method].to_dict()}
-            for figure in ("p50_s", "p99_s"):
-                ratio, low, high = (paired_ratio([p["latency_s"].to_numpy() for p in by_method[mine]],
-                                                 [p["latency_s"].to_numpy() for p in by_method[method]], figure, rng)
+            for column, figure in enumerate(RATIO_FIGURES):
+                ratio, low, high = (_ratio(figures.loc[mine, figure], figures.loc[method, figure],
+                                           resampled[mine][:, column], resampled[method][:, column])
                                     if method != mine else (1.0, 1.0, 1.0))
                 row |= {f"ratio_{figure}": ratio, f"ratio_{figure}_low": low, f"ratio_{figure}_high": high}
             rows.append(row)
