@@ -29,8 +29,8 @@ from pathlib import Path
 from yafs_safetail.defaults import DATA_ROOT
 from yafs_safetail.edge.calibration import LANDED
 from yafs_safetail.edge.inputs import load_inputs, load_scenario_for
-from yafs_safetail.edge.mobility import RandomWaypoint
 from yafs_safetail.edge.movement import MobilityPlan, default_area_m
+from yafs_safetail.edge.routes import RandomWaypoint
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.edge.usecases import get_use_case
 from yafs_safetail.edge.world import build_world

@@ -16,6 +16,7 @@ MOVED = {
     **{f"yafs_safetail.contention.{name}": f"yafs_safetail.runs.{name}"
        for name in ("sweep", "sweep_config", "sweep_checks", "sweep_learners", "mechanism")},
     "yafs_safetail.contention.sweep_report": "yafs_safetail.results.sweep_report",
+    "yafs_safetail.edge.mobility": "yafs_safetail.edge.routes",
 }
 
 

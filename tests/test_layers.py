@@ -47,6 +47,7 @@ BELOW_RUNS = tuple(name for name in FLOOR_OF if FLOOR_OF[name] < FLOOR_OF["runs"
 #: of the floors, since a user's old import, not the package, is what they serve.
 DEPRECATED_ALIASES = frozenset({
     "yafs_safetail.settings.world_recipe",
+    "yafs_safetail.edge.mobility",
     *(f"yafs_safetail.contention.{name}" for name in ("sweep", "sweep_config", "sweep_checks", "sweep_learners",
                                                       "sweep_report", "mechanism")),
 })

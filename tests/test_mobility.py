@@ -1,4 +1,4 @@
-"""Positions, the distance-to-condition rule and routes (edge.positions, edge.signal, edge.mobility)."""
+"""Positions, the distance-to-condition rule and routes (edge.positions, edge.signal, edge.routes)."""
 
 from __future__ import annotations
 
@@ -10,18 +10,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from yafs_safetail.edge.mobility import (
-    RandomWaypoint,
-    RouteError,
-    project_route_m,
-    random_waypoint,
-    read_route,
-)
 from yafs_safetail.edge.positions import (
     EARTH_RADIUS_M,
     Origin,
     PositionError,
     project_m,
+)
+from yafs_safetail.edge.routes import (
+    RandomWaypoint,
+    RouteError,
+    project_route_m,
+    random_waypoint,
+    read_route,
 )
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE, SignalRule, distances_m
 from yafs_safetail.edge.topology_io import ScenarioError, load_topology

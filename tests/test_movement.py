@@ -11,8 +11,8 @@ import pytest
 
 from yafs_safetail.edge.calibration import LANDED
 from yafs_safetail.edge.inputs import load_scenario_for
-from yafs_safetail.edge.mobility import RandomWaypoint, Route, at_rest, read_route
 from yafs_safetail.edge.movement import MobilityPlan, MovementError, default_area_m
+from yafs_safetail.edge.routes import RandomWaypoint, Route, at_rest, read_route
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.edge.world import build_world
 

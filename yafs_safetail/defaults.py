@@ -77,7 +77,7 @@ TARGET_COMPUTES = ("trace_median", "request")
 #: written (the x best of all n servers); ``original-code``, as the code that produced the
 #: paper's numbers chose (three servers drawn at random per request, sorted stably, the first x).
 BASELINE_READINGS = ("paper-text", "original-code")
-#: How the user moves (edge.mobility; docs/mobility.md): not at all, random waypoint, a route file.
+#: How the user moves (edge.routes; docs/mobility.md): not at all, random waypoint, a route file.
 MOBILITY_MODELS = ("off", "random-waypoint", "route")
 #: Random waypoint's default speed range, m/s: walking.
 WALKING_SPEED_MPS = (1.0, 1.5)

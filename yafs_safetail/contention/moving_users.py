@@ -16,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 from yafs_safetail.edge.inputs import TraceInputs
-from yafs_safetail.edge.mobility import Route
 from yafs_safetail.edge.movement import (
     MobilityPlan,
     Movement,
@@ -25,6 +24,7 @@ from yafs_safetail.edge.movement import (
     positions_at_m,
     server_positions_m,
 )
+from yafs_safetail.edge.routes import Route
 from yafs_safetail.edge.sampling import phase_seed_sequence
 from yafs_safetail.edge.scenario import EdgeScenario
 

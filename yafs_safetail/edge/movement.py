@@ -1,6 +1,6 @@
 """A phase's movement: where the user is at each request, and what that does to each link.
 
-``edge.mobility`` says how the user moves (a route, or random waypoint's parameters);
+``edge.routes`` says how the user moves (a route, or random waypoint's parameters);
 ``edge.signal`` says what a distance does to a link's condition. This module joins them for
 one phase (:func:`draw_movement`; the contention world's users through the same
 steps, :func:`positions_at_m` and :func:`links_at`):
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from yafs_safetail.edge.inputs import TraceInputs
-from yafs_safetail.edge.mobility import RandomWaypoint, Route, random_waypoint
+from yafs_safetail.edge.routes import RandomWaypoint, Route, random_waypoint
 from yafs_safetail.edge.sampling import quantile_lookup
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE, SignalRule, distances_m

@@ -9,7 +9,7 @@ exact and scales east-west ones by cos(latitude), which varies by less than that
 kilometres away from the poles), which is far below what changes a link's condition.
 
 Every function here is pure and light (no file, no NumPy): ``edge.topology_io`` and
-``edge.mobility`` read the files and name the entry that is wrong.
+``edge.routes`` read the files and name the entry that is wrong.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def project_m(lat_deg: float, lon_deg: float, origin: Origin) -> tuple[float, fl
 
     Longitudes are taken the short way round from the origin's (a route across the
     antimeridian stays continuous). Plain floats, no NumPy: a topology is read before a run's
-    arguments are checked (``edge.mobility`` projects a whole route at once).
+    arguments are checked (``edge.routes`` projects a whole route at once).
     """
     east_deg = (lon_deg - origin.lon_deg + 180.0) % 360.0 - 180.0
     x_m = EARTH_RADIUS_M * math.radians(east_deg) * math.cos(math.radians(origin.lat_deg))

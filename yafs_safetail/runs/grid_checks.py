@@ -18,7 +18,7 @@ from typing import Any
 from yafs_safetail.defaults import DATA_FILES, DATA_ROOT, DEFAULT_TOPOLOGY
 from yafs_safetail.edge.calibration import WORLD_NAMES, WorldSettings, world_settings
 from yafs_safetail.edge.failures import read_down_file
-from yafs_safetail.edge.mobility import read_route
+from yafs_safetail.edge.routes import read_route
 from yafs_safetail.edge.scenario import load_placement, load_scenario, load_topology
 from yafs_safetail.methods.registry import UserMethod
 from yafs_safetail.methods.safetail.spaces import MAX_SERVERS

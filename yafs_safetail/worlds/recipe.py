@@ -19,13 +19,13 @@ from yafs_safetail.defaults import DEFAULT_STEP_INTERVAL_S
 from yafs_safetail.edge.calibration import world_settings
 from yafs_safetail.edge.energy import EnergyModel, ServerPowerModel
 from yafs_safetail.edge.failures import DEFAULT_MTTR_S, FailureSettings, read_down_file
-from yafs_safetail.edge.mobility import RandomWaypoint, read_route
 from yafs_safetail.edge.movement import (
     MobilityPlan,
     MovementError,
     default_area_m,
     server_positions_m,
 )
+from yafs_safetail.edge.routes import RandomWaypoint, read_route
 from yafs_safetail.edge.scenario import EdgeScenario
 from yafs_safetail.edge.signal import DEFAULT_SIGNAL_RULE
 from yafs_safetail.edge.world import EdgeWorld
