@@ -1,20 +1,29 @@
-"""A module's source with a few lines added as it is imported, in a fresh interpreter: how the
-"a new X is one class or function" tests add one without touching a file on disk."""
+"""A module's source changed as it is imported, in a fresh interpreter: how the "a new X is one
+class, function or declaration" tests add one without touching a file on disk."""
 
 from __future__ import annotations
 
-#: Python run before a probe: with ``ADD`` true, MODULE's source gets ADDITION appended when it
-#: is imported (never from cached bytecode); with ``ADD`` false, nothing changes.
+from collections.abc import Mapping, Sequence
+
+#: Python run before a probe: with ``ADD`` true, each module of CHANGES gets each text inserted
+#: before its anchor (appended when the anchor is None) when it is imported, never from cached
+#: bytecode; with ``ADD`` false, nothing changes.
 _HOOK = """
 import importlib.machinery, sys
-MODULE = {module!r}
-ADDITION = {addition!r}
+CHANGES = {changes!r}
 
 class Loader(importlib.machinery.SourceFileLoader):
     def get_data(self, path):
         data = super().get_data(path)
-        if path.endswith(".py"):
-            data += ADDITION.encode()
+        if path.endswith(".py") and self.name in CHANGES:
+            text = data.decode()
+            for before, added in CHANGES[self.name]:
+                if before is None:
+                    text += added
+                else:
+                    assert before in text, (self.name, before)
+                    text = text.replace(before, added + before, 1)
+            data = text.encode()
         return data
 
     def path_stats(self, path):  # never a cached bytecode of the unchanged source
@@ -24,7 +33,7 @@ class Finder(importlib.machinery.PathFinder):
     @classmethod
     def find_spec(cls, name, path=None, target=None):
         spec = super().find_spec(name, path, target)
-        if spec is not None and name == MODULE:
+        if spec is not None and name in CHANGES:
             spec.loader = Loader(name, spec.origin)
         return spec
 
@@ -33,6 +42,13 @@ if ADD:
 """
 
 
-def source_hook(module: str, addition: str) -> str:
-    """The code that adds ``addition`` to ``module``'s source when ``ADD`` is true."""
-    return _HOOK.format(module=module, addition=addition)
+def source_hook(changes: Mapping[str, Sequence[tuple[str | None, str]]]) -> str:
+    """The code that, when ``ADD`` is true, changes each module named in ``changes`` as it is
+    imported: each ``(before, text)`` inserts ``text`` before the first ``before`` in its source,
+    or appends it when ``before`` is None."""
+    return _HOOK.format(changes={module: list(edits) for module, edits in changes.items()})
+
+
+def appended(module: str, text: str) -> str:
+    """The code that appends ``text`` to ``module``'s source when ``ADD`` is true."""
+    return source_hook({module: [(None, text)]})

@@ -11,11 +11,11 @@ import sys
 from pathlib import Path
 
 from in_process import run_usecase_here
-from source_addition import source_hook
+from source_addition import appended
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 #: The function, added to the module's source as it is imported: nothing on disk changes.
-HOOK = source_hook("yafs_safetail.results.figures.run_figures", """
+HOOK = appended("yafs_safetail.results.figures.run_figures", """
 
 @run_figure("servers", "servers_per_request")
 def _servers_per_request(inputs):

@@ -10,11 +10,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from source_addition import source_hook
+from source_addition import appended
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 #: The class, added to the module's source as it is imported: nothing on disk changes.
-HOOK = source_hook("yafs_safetail.methods.objectives", """
+HOOK = appended("yafs_safetail.methods.objectives", """
 
 class MixedTarget(Objective):
     \"\"\"Test only: §III's target vector mixed with the uniform one.\"\"\"

@@ -12,44 +12,18 @@ import subprocess
 import sys
 from pathlib import Path
 
+from source_addition import source_hook
+
 REPOSITORY = Path(__file__).resolve().parents[1]
 #: Adds the setting to the sources as they are imported: nothing on disk changes.
-HOOK = '''
-import importlib.machinery, sys
-ADDED = {
+HOOK = source_hook({
     "yafs_safetail.settings.world": [
         ("    baseline_reading: str = setting(",
-         "    link_jitter: float = setting(1.0, 'a test-only world setting', check=POSITIVE_NUMBER)\\n"),
+         "    link_jitter: float = setting(1.0, 'a test-only world setting', check=POSITIVE_NUMBER)\n"),
         ("    baseline_reading: str | None = same_as(",
-         "    link_jitter: float | None = same_as(WorldSettings, 'link_jitter', None)\\n"),
+         "    link_jitter: float | None = same_as(WorldSettings, 'link_jitter', None)\n"),
     ],
-}
-
-class Loader(importlib.machinery.SourceFileLoader):
-    def get_data(self, path):
-        data = super().get_data(path)
-        if path.endswith(".py") and self.name in ADDED:
-            text = data.decode()
-            for before, line in ADDED[self.name]:
-                assert before in text, self.name
-                text = text.replace(before, line + before, 1)
-            data = text.encode()
-        return data
-
-    def path_stats(self, path):  # never a cached bytecode of the unchanged source
-        raise OSError
-
-class Finder(importlib.machinery.PathFinder):
-    @classmethod
-    def find_spec(cls, name, path=None, target=None):
-        spec = super().find_spec(name, path, target)
-        if spec is not None and name in ADDED:
-            spec.loader = Loader(name, spec.origin)
-        return spec
-
-if ADD:
-    sys.meta_path.insert(0, Finder)
-'''
+})
 PROBE = '''
 import json, dataclasses, inspect
 from yafs_safetail.commands import load_sweep, run_usecase
