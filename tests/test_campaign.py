@@ -243,3 +243,24 @@ def test_a_run_interrupted_while_training_resumes_from_its_checkpoint(uncut, tmp
     for spec in specs:
         assert folder_bytes(out / spec.name) == folder_bytes(reference / spec.name), spec.name
     assert not any(p.name.endswith(".checkpoint") for p in out.iterdir())  # removed once done
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"engine": "ray"}, "--engine ray: Ray is not installed"),
+    ({"ray_address": "127.0.0.1:6379"}, "--engine ray: Ray is not installed"),
+    ({"engine": "spark"}, "--engine: unknown engine 'spark'"),
+    ({"workers": 0}, "--workers: expected a positive integer, got 0"),
+])
+def test_an_engine_that_cannot_start_is_one_line_before_anything_is_written(tmp_path, monkeypatch, options, message):
+    import importlib.util
+
+    from yafs_safetail.runs import engines
+
+    # As on a machine without Ray, whether or not this one has it.
+    real_find_spec = importlib.util.find_spec
+    monkeypatch.setattr(engines.importlib.util, "find_spec",
+                        lambda name, *args: None if name == "ray" else real_find_spec(name, *args))
+    specs = expand(TINY, {"seed": [0]})
+    with pytest.raises(ValueError, match=message.replace("[", r"\[")):
+        run_campaign(specs, tmp_path / "c", **options)
+    assert not (tmp_path / "c").exists()

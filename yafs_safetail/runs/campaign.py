@@ -31,7 +31,7 @@ from yafs_safetail.results import write_text_atomic
 from yafs_safetail.runs.engine_options import ENGINE_OPTIONS as ENGINE_OPTIONS
 from yafs_safetail.runs.engine_options import add_engine_options as add_engine_options
 from yafs_safetail.runs.engine_options import engine_free_command as engine_free_command
-from yafs_safetail.runs.engines import RunResult, RunTask, cancel_all, make_engine
+from yafs_safetail.runs.engines import RunResult, RunTask, cancel_all, check_engine, make_engine
 from yafs_safetail.runs.grid import RunSpec, code_version
 from yafs_safetail.runs.output import RUN_FILE, is_results_folder, refuse_protected
 
@@ -185,6 +185,7 @@ def run_campaign(specs: Sequence[RunSpec], out: Path, *, engine: str = "local",
     """
     out = Path(out)
     refuse_protected(out)
+    check_engine(engine, workers, ray_address)  # before anything is written
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:

@@ -14,12 +14,13 @@ task and its execution (``runs.run_tasks``), the local engine (``runs.local_engi
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Iterable
 from typing import Any
 
 from yafs_safetail.runs.engine_options import ENGINES, local_workers
 from yafs_safetail.runs.local_engine import KILL_RUN_ENV, LocalEngine
-from yafs_safetail.runs.ray_engine import RAY_TASK_RETRIES, RayEngine, unpack
+from yafs_safetail.runs.ray_engine import RAY_MISSING, RAY_TASK_RETRIES, RayEngine, unpack
 from yafs_safetail.runs.run_tasks import (
     ONE_CORE_ENV,
     RUN_KINDS,
@@ -30,17 +31,31 @@ from yafs_safetail.runs.run_tasks import (
 )
 
 __all__ = ["ONE_CORE_ENV", "RUN_KINDS", "KILL_RUN_ENV", "RAY_TASK_RETRIES", "RunTask", "RunResult",
-           "LocalEngine", "RayEngine", "execute", "one_line", "unpack", "make_engine", "cancel_all"]
+           "LocalEngine", "RayEngine", "execute", "one_line", "unpack", "check_engine", "make_engine", "cancel_all"]
+
+
+def check_engine(engine: str, workers: int | None, ray_address: str | None) -> None:
+    """What :func:`make_engine` would refuse, found without starting anything (a campaign checks
+    it before it writes a file): a bad ``--workers``, an unknown engine, Ray asked for but not
+    installed.
+
+    Raises:
+        ValueError: one line naming the option.
+    """
+    if workers is not None and (isinstance(workers, bool) or workers < 1):
+        raise ValueError(f"--workers: expected a positive integer, got {workers!r}")
+    if engine == "ray" or ray_address:
+        if importlib.util.find_spec("ray") is None:
+            raise ValueError(RAY_MISSING)
+    elif engine != "local":
+        raise ValueError(f"--engine: unknown engine {engine!r}; valid: {', '.join(ENGINES)}")
 
 
 def make_engine(engine: str, workers: int | None, ray_address: str | None) -> LocalEngine | RayEngine:
     """The engine named on the command line (``--engine``, ``--workers``, ``--ray-address``)."""
-    if workers is not None and (isinstance(workers, bool) or workers < 1):
-        raise ValueError(f"--workers: expected a positive integer, got {workers!r}")
+    check_engine(engine, workers, ray_address)
     if engine == "ray" or ray_address:
         return RayEngine(workers, ray_address)
-    if engine != "local":
-        raise ValueError(f"--engine: unknown engine {engine!r}; valid: {', '.join(ENGINES)}")
     return LocalEngine(local_workers(workers))
 
 

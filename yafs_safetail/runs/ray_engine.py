@@ -78,6 +78,10 @@ def unpack(result: RunResult, task: RunTask) -> RunResult:
 RAY_TASK_RETRIES = 3
 
 
+#: What a campaign says when Ray is asked for and not installed.
+RAY_MISSING = "--engine ray: Ray is not installed; pip install -e .[ray] (or use the local engine)"
+
+
 class RayEngine:
     """Ray tasks: a local Ray runtime with ``workers`` CPUs, or the cluster at ``address``."""
 
@@ -85,8 +89,7 @@ class RayEngine:
         try:
             import ray
         except ImportError:
-            raise ValueError("--engine ray: Ray is not installed; pip install -e .[ray] "
-                             "(or use the local engine)") from None
+            raise ValueError(RAY_MISSING) from None
         self._ray = ray
         self._owns_runtime = not ray.is_initialized()
         if self._owns_runtime:
