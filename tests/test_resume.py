@@ -227,3 +227,17 @@ def test_a_run_stopped_by_a_policys_bug_leaves_no_checkpoint(tmp_path):
 ])
 def test_only_a_stop_from_outside_keeps_the_checkpoint(error, resumable):
     assert checkpoint_module.resumable_after(error) is resumable
+
+
+def test_a_sigterm_that_surfaced_as_another_exception_still_keeps_the_checkpoint():
+    # A SIGTERM inside library code can come out as, say, the ImportError of the import it cut
+    # short: the process's flag, not the exception's type, says the run was stopped from outside.
+    from yafs_safetail.stopping import Terminated, clear_terminating, raise_terminated
+
+    try:
+        with pytest.raises(Terminated):
+            raise_terminated(signal.SIGTERM, None)
+        assert checkpoint_module.resumable_after(ImportError("cut short by the signal")) is True
+    finally:
+        clear_terminating()
+    assert checkpoint_module.resumable_after(ImportError("a missing module")) is False

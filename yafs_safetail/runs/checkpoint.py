@@ -33,6 +33,7 @@ from pathlib import Path
 
 from yafs_safetail.record import RequestRecord
 from yafs_safetail.runs.output import OutputError
+from yafs_safetail.stopping import terminating
 
 #: The marker file inside every checkpoint folder this tool made.
 CHECKPOINT_MARKER = ".yafs-safetail-checkpoint"
@@ -92,8 +93,11 @@ def resumable_after(error: BaseException) -> bool:
     that returns no server, raises, ...) stops the same command again at the same place, and
     the fix (an edited policy file) changes the run id the checkpoint is tied to, so
     ``--resume`` would refuse it: such a checkpoint is only a hidden megabyte-sized folder.
+    A SIGTERM is a stop from outside whatever exception it surfaced as.
     """
-    return not isinstance(error, Exception) or isinstance(error, OSError)
+    # A SIGTERM that lands inside library code may surface as another exception (an import it
+    # interrupts raises ImportError): the process's flag says it was a stop from outside.
+    return not isinstance(error, Exception) or isinstance(error, OSError) or terminating()
 
 
 def checkpoint_folder(target: Path) -> Path:
