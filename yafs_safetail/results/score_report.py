@@ -254,7 +254,7 @@ def report_markdown(table: pd.DataFrame, mine: str, titles: Mapping[str, str], s
               "Every method of a scenario meets the same requests, in the same order, with the same random "
               "draws (common random numbers). Each interval is a paired moving-block bootstrap "
               f"({RESAMPLES} resamples): within each seed, blocks of √n consecutive requests are drawn "
-              "with replacement (n: that seed's test requests), the same blocks for both methods; the "
+              "with replacement (n: that seed's test requests), the same blocks for every method of the scenario; the "
               "figure is computed over every seed's resampled requests together; the interval is the "
               "2.5th and 97.5th percentiles of the ratios (docs/results.md, \"Paired intervals by request\").", "",
               "## The suite's settings", "", f"`{command}`", "", "```", *(f"{key}: {value}" for key, value in
