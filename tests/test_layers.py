@@ -32,12 +32,6 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("api",),
 )
 FLOOR_OF = {name: level for level, names in enumerate(FLOORS) for name in names}
-#: Imports of a floor above, each with its reason; nothing else may climb.
-EXCEPTIONS = {
-    # A --method spec becomes a user's policy (methods.registry.UserMethod, which loads NumPy)
-    # when the options are parsed: the settings hold the policies, not only their specs.
-    ("yafs_safetail.settings.experiment", "yafs_safetail.methods.registry"),
-}
 #: Below the commands: none of these imports ``cli`` (only ``commands`` and ``cli`` itself do).
 NOT_CLI = tuple(name for name in FLOOR_OF if FLOOR_OF[name] < FLOOR_OF["cli"])
 #: Below ``runs``: none of these imports it.
@@ -106,19 +100,18 @@ def _module_edges() -> set[tuple[str, str]]:
 
 
 def _edges() -> dict[tuple[str, str], list[str]]:
-    """(floor, imported floor) -> the modules behind that edge, for every existing module (the
-    :data:`EXCEPTIONS` left out: each is named, with its reason, where it is allowed)."""
+    """(floor, imported floor) -> the modules behind that edge, for every existing module."""
     edges: dict[tuple[str, str], list[str]] = {}
-    for module, target in sorted(_module_edges() - EXCEPTIONS):
+    for module, target in sorted(_module_edges()):
         edges.setdefault((_floor(module) or "", _floor(target) or ""), []).append(module)
     return edges
 
 
 def _climbing(module_edges: set[tuple[str, str]]) -> list[str]:
-    """The imports of a package on the importer's own floor or above, but the exceptions."""
+    """The imports of a package on the importer's own floor or above (none may climb: what a
+    declaration needs from above is ``Provided`` to it, ``settings.declare``)."""
     return sorted(f"{module} imports {target}" for module, target in module_edges
-                  if (module, target) not in EXCEPTIONS
-                  and FLOOR_OF[_floor(target) or ""] >= FLOOR_OF[_floor(module) or ""])
+                  if FLOOR_OF[_floor(target) or ""] >= FLOOR_OF[_floor(module) or ""])
 
 
 def test_every_package_and_root_module_has_a_floor() -> None:
@@ -136,10 +129,6 @@ def test_the_floors_check_sees_a_lower_floor_importing_a_higher_one() -> None:
                       ("yafs_safetail.edge.world", "yafs_safetail.settings.world")}) == [
         "yafs_safetail.settings.world imports yafs_safetail.edge.calibration",
         "yafs_safetail.sim.env imports yafs_safetail.contention.env"]
-
-
-def test_the_exceptions_are_still_imports() -> None:
-    assert EXCEPTIONS <= _module_edges()
 
 
 def test_the_parser_sees_lazy_and_type_checking_imports(tmp_path: Path) -> None:
@@ -166,7 +155,7 @@ def test_nothing_below_runs_imports_it(floor: str) -> None:
 
 def test_the_settings_floor_stands_on_the_light_root_modules_alone() -> None:
     allowed = {"defaults"}
-    found = {_floor(target) for module, target in _module_edges() - EXCEPTIONS if _floor(module) == "settings"}
+    found = {_floor(target) for module, target in _module_edges() if _floor(module) == "settings"}
     assert found <= allowed, f"settings imports {sorted(found - allowed)}"
 
 
@@ -233,3 +222,19 @@ def test_every_package_says_what_it_holds():
     for init in PACKAGE.rglob("__init__.py"):
         docstring = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8")))
         assert docstring and len(docstring.split()) >= 8, f"{init}: no docstring saying what it holds"
+
+
+def test_a_conversion_from_above_is_provided_by_its_floor_not_imported() -> None:
+    # settings.experiment declares --method; the methods package, a floor above, provides the
+    # conversion of its specs into users' policies when it is imported.
+    from yafs_safetail.settings.declare import Provided, field_of, setting_of
+    from yafs_safetail.settings.experiment import USER_METHODS, Task
+
+    assert setting_of(field_of(Task, "methods")).from_cli is USER_METHODS
+    import yafs_safetail.methods  # noqa: F401  (provides it)
+    from yafs_safetail.methods.registry import UserMethod
+
+    (method,) = USER_METHODS(["Mine=yafs_safetail.methods.baselines:LeastLoadedTwo"])
+    assert isinstance(method, UserMethod) and method.name == "Mine"
+    with pytest.raises(RuntimeError, match="--flag: nothing provides the conversion; import some.package first"):
+        Provided("--flag", "some.package")(["x"])

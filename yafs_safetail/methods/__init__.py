@@ -8,7 +8,10 @@ loads nothing heavy: its names are imported on first access, so that a light mod
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
+
+from yafs_safetail.settings.experiment import USER_METHODS, expand_method_spec
 
 if TYPE_CHECKING:
     from yafs_safetail.methods.baselines import MinLoadX, MinPropX, Oracle, RandX
@@ -26,6 +29,19 @@ _LAZY = {
     "PolicyError": "yafs_safetail.methods.policy",
     "make_baseline": "yafs_safetail.methods.registry",
 }
+
+
+def _user_methods(specs: Sequence[str]) -> tuple[Any, ...]:
+    """``--method`` specs as users' policies (``registry.UserMethod``: each file loaded and its
+    class checked, so a bad one is one line before anything runs)."""
+    from yafs_safetail.methods.registry import UserMethod  # NumPy: only once the options are parsed
+
+    return tuple(UserMethod(expand_method_spec(spec)) for spec in specs)
+
+
+# The run's declaration (settings.experiment.Task.methods) converts its specs with this, which
+# only this floor can provide: every command that reads --method imports this package first.
+USER_METHODS.provide(_user_methods)
 
 
 def __getattr__(name: str) -> Any:

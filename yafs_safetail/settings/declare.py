@@ -92,6 +92,26 @@ class Names(Sequence[str]):
         return f"Names({self._names!r})"
 
 
+class Provided:
+    """A conversion a setting declared on this floor needs and a higher floor provides when its
+    package is imported (``settings.experiment.USER_METHODS``: the ``methods`` package turns
+    ``--method`` specs into users' policies), so that the declaration imports nothing above it.
+    Called before it is provided, it says which package provides it."""
+
+    def __init__(self, what: str, provider: str) -> None:
+        self.what, self.provider = what, provider
+        self._convert: Callable[[Any], Any] | None = None
+
+    def provide(self, convert: Callable[[Any], Any]) -> None:
+        """Set the conversion (the providing package does, once, as it is imported)."""
+        self._convert = convert
+
+    def __call__(self, value: Any) -> Any:
+        if self._convert is None:
+            raise RuntimeError(f"{self.what}: nothing provides the conversion; import {self.provider} first")
+        return self._convert(value)
+
+
 def is_number(value: Any) -> bool:
     """A finite int or float (never a bool): what every numeric check starts from."""
     return not isinstance(value, bool) and isinstance(value, float | int) and math.isfinite(value)

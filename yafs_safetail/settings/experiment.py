@@ -27,10 +27,9 @@ Adding a setting is one field in one group (CONTRIBUTING.md shows an example).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 # Only light modules here: the scripts build their parsers and check their arguments from this
 # module before NumPy, pandas, simpy or TensorFlow load (``--help`` answers at once). The
@@ -59,6 +58,7 @@ from yafs_safetail.settings.declare import (
     PROBABILITY_BELOW_ONE,
     SPEED_RANGE,
     Names,
+    Provided,
     SettingError,
     one_of,
     setting,
@@ -66,17 +66,11 @@ from yafs_safetail.settings.declare import (
 )
 from yafs_safetail.settings.world import WorldOverrides, WorldSettings
 
-if TYPE_CHECKING:
-    # The one import of a higher floor (tests/test_layers.py names it): a --method spec becomes
-    # a user's policy when the options are parsed.
-    from yafs_safetail.methods.registry import UserMethod
-
-
 __all__ = [
     "ExperimentError", "Task", "WorldInputs", "WorldOverrides", "FailuresAndPower", "Mobility", "WorldSetup",
     "LearnerOverrides", "Output", "ExperimentConfig", "GROUPS", "FIRST_RESULT_FIELDS", "LATER_RESULT_FIELDS",
     "RESULT_FIELDS", "RUNTIME_FIELDS", "GRID_RUNTIME_FIELDS", "OBJECTIVE_NAMES", "learner_overrides",
-    "expand_method_spec",
+    "expand_method_spec", "USER_METHODS",
 ]
 
 
@@ -101,10 +95,9 @@ def expand_method_spec(spec: str) -> str:
     return f"{name}{sep}{Path(target).expanduser()}" if target.startswith("~") else spec
 
 
-def _user_methods(specs: Sequence[str]) -> tuple[UserMethod, ...]:
-    from yafs_safetail.methods.registry import UserMethod  # NumPy: only once the options parsed
-
-    return tuple(UserMethod(expand_method_spec(spec)) for spec in specs)
+#: ``--method`` specs to users' policies (``methods.registry.UserMethod``, each file loaded and
+#: checked): the ``methods`` package provides it when imported, a floor above the declarations.
+USER_METHODS = Provided("--method", "yafs_safetail.methods")
 
 
 @dataclass(frozen=True)
@@ -123,10 +116,11 @@ class Task:
     redundancy_levels: tuple[int, ...] = setting(
         (1, 2, 3), "levels x of Rand-x, MinLoad-x, MinProp-x (default 1,2,3)", check=LEVELS,
         flag="--redundancy")
-    methods: tuple[UserMethod, ...] = setting(
+    # Users' policies, methods.registry.UserMethod (a higher floor's type, so not named here).
+    methods: tuple[Any, ...] = setting(
         (), "add your own Policy to the comparison (also module:Class; repeatable; named after the "
         "class unless NAME= is given)", flag="--method", action="append", metavar="[NAME=]FILE.py:CLASS",
-        from_cli=_user_methods)
+        from_cli=USER_METHODS)
     policy: Path | None = setting(None, "evaluate this saved policy (.keras) without training", optional=True)
 
 
