@@ -38,7 +38,8 @@ from yafs_safetail.cli import (
 )
 from yafs_safetail.defaults import CAMPUS_TOPOLOGY, MOBILITY_SPEEDS_MPS
 from yafs_safetail.runs.engine_options import add_engine_options, engine_keywords
-from yafs_safetail.settings.declare import one_of, setting
+from yafs_safetail.settings.checks import one_of
+from yafs_safetail.settings.declare import setting
 from yafs_safetail.settings.experiment import ExperimentConfig
 from yafs_safetail.settings.options import add_list_options, add_options
 

@@ -34,7 +34,8 @@ from yafs_safetail.cli import (
 from yafs_safetail.commands.sweeps import add_users_options, add_world_options, contention_base
 from yafs_safetail.contention.config import ContentionConfig
 from yafs_safetail.runs.sweep_config import SweepConfig
-from yafs_safetail.settings.declare import POSITIVE_INTEGER, setting
+from yafs_safetail.settings.checks import POSITIVE_INTEGER
+from yafs_safetail.settings.declare import setting
 from yafs_safetail.settings.options import add_options, config_from_args
 
 #: Windows of training per load (runs.mechanism.DEFAULT_WINDOWS; here so --help loads nothing).

@@ -24,15 +24,11 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from yafs_safetail.edge.energy import EnergyModel
 from yafs_safetail.edge.failure_settings import FailureSettings
+from yafs_safetail.settings.checks import BOOLEAN, POSITIVE_INTEGER, POSITIVE_NUMBER, Check, one_of
 from yafs_safetail.settings.declare import (
-    BOOLEAN,
-    POSITIVE_INTEGER,
-    POSITIVE_NUMBER,
-    Check,
     SettingError,
     check_config,
     field_of,
-    one_of,
     same_as,
     setting,
     setting_of,

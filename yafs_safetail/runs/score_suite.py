@@ -26,7 +26,8 @@ from yafs_safetail.runs.sweep_config import (
     FailureSweepConfig,
     SweepConfig,
 )
-from yafs_safetail.settings.declare import one_of, setting
+from yafs_safetail.settings.checks import one_of
+from yafs_safetail.settings.declare import setting
 
 if TYPE_CHECKING:
     from yafs_safetail.runs.grid import RunSpec

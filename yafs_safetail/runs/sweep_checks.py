@@ -8,7 +8,7 @@ import math
 from typing import Any
 
 from yafs_safetail.methods.objectives import objective_names
-from yafs_safetail.settings.declare import Check
+from yafs_safetail.settings.checks import Check
 from yafs_safetail.settings.parse import load_list
 
 

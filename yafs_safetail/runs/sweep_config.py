@@ -40,14 +40,8 @@ from yafs_safetail.runs.sweep_learners import (
     SafeTailVariant,
     training_requests,
 )
-from yafs_safetail.settings.declare import (
-    BOOLEAN,
-    POSITIVE_INTEGER,
-    check_config,
-    one_of,
-    same_as,
-    setting,
-)
+from yafs_safetail.settings.checks import BOOLEAN, POSITIVE_INTEGER, one_of
+from yafs_safetail.settings.declare import check_config, same_as, setting
 from yafs_safetail.settings.experiment import FailuresAndPower, LearnerOverrides, Task
 
 if TYPE_CHECKING:

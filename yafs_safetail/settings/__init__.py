@@ -7,6 +7,7 @@ read their settings and checks from here.
 - ``declare``: how a setting is declared (:func:`~yafs_safetail.settings.declare.setting`:
   name, type, default, help, check, whether it changes results) and what is derived from the
   declarations (command-line options, configurations from them, checks, titles);
+- ``checks``: what values a setting accepts (``Check``, the common checks, ``Names``);
 - ``parse``: text to value for the command line (standard library only);
 - ``world``: every world's settings (``WorldSettings``) and the ones a run may override
   (``WorldOverrides``), declared once for the experiment, the contention world, the sweeps and

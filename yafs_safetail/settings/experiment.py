@@ -47,7 +47,7 @@ from yafs_safetail.defaults import (
     USE_CASES,
     WALKING_SPEED_MPS,
 )
-from yafs_safetail.settings.declare import (
+from yafs_safetail.settings.checks import (
     BOOLEAN,
     FORMATS,
     LEVELS,
@@ -58,12 +58,9 @@ from yafs_safetail.settings.declare import (
     PROBABILITY_BELOW_ONE,
     SPEED_RANGE,
     Names,
-    Provided,
-    SettingError,
     one_of,
-    setting,
-    setting_of,
 )
+from yafs_safetail.settings.declare import Provided, SettingError, setting, setting_of
 from yafs_safetail.settings.world import WorldOverrides, WorldSettings
 
 __all__ = [

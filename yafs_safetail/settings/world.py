@@ -25,17 +25,15 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from yafs_safetail.defaults import BASELINE_READINGS, TARGET_COMPUTES
-from yafs_safetail.settings.declare import (
+from yafs_safetail.settings.checks import (
     NON_NEGATIVE_NUMBER,
     POSITIVE_NUMBER,
     Check,
     is_integer,
     is_number,
     one_of,
-    refused_field,
-    same_as,
-    setting,
 )
+from yafs_safetail.settings.declare import refused_field, same_as, setting
 
 #: How the servers' load traces start an episode (:attr:`WorldSettings.load_start`).
 LOAD_STARTS = ("shared", "per_server")

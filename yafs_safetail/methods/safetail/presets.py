@@ -21,15 +21,17 @@ from yafs_safetail.defaults import PRESET_NAMES as PRESET_NAMES
 from yafs_safetail.edge import published
 from yafs_safetail.methods.objectives import Q_TARGET_DISCOUNT as Q_TARGET_DISCOUNT
 from yafs_safetail.methods.objectives import Objective, objective_named
-from yafs_safetail.settings.declare import (
+from yafs_safetail.settings.checks import (
     POSITIVE_INTEGER,
     POSITIVE_NUMBER,
-    REQUIRED,
     Check,
-    field_of,
     is_integer,
     is_number,
     one_of,
+)
+from yafs_safetail.settings.declare import (
+    REQUIRED,
+    field_of,
     refused_field,
     same_as,
     setting,
