@@ -3,7 +3,14 @@ class, function or declaration" tests add one without touching a file on disk.""
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+REPOSITORY = Path(__file__).resolve().parents[1]
 
 #: Python run before a probe: with ``ADD`` true, each module of CHANGES gets each text inserted
 #: before its anchor (appended when the anchor is None) when it is imported, never from cached
@@ -52,3 +59,12 @@ def source_hook(changes: Mapping[str, Sequence[tuple[str | None, str]]]) -> str:
 def appended(module: str, text: str) -> str:
     """The code that appends ``text`` to ``module``'s source when ``ADD`` is true."""
     return source_hook({module: [(None, text)]})
+
+
+def run_probe(hook: str, probe: str, add: bool, *args: str) -> Any:
+    """Run ``probe`` (which prints one JSON value last) in a fresh interpreter after ``hook``,
+    with the change made (``add``) or not; returns that value."""
+    done = subprocess.run([sys.executable, "-c", f"ADD = {add}\n{hook}\n{probe}", *args], capture_output=True,
+                          text=True, cwd=REPOSITORY, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.splitlines()[-1])

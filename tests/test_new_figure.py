@@ -4,14 +4,11 @@ the others, and every run's figures include it."""
 
 from __future__ import annotations
 
-import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 from in_process import run_usecase_here
-from source_addition import appended
+from source_addition import appended, run_probe
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 #: The function, added to the module's source as it is imported: nothing on disk changes.
@@ -32,9 +29,7 @@ print(json.dumps(code))
 
 
 def _figures_drawn(folder: Path, add: bool) -> list[str]:
-    done = subprocess.run([sys.executable, "-c", f"ADD = {add}\n{HOOK}\n{PROBE}", str(folder)],
-                          capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
-    assert done.returncode == 0 and json.loads(done.stdout.splitlines()[-1]) in (0, None), done.stderr[-3000:]
+    assert run_probe(HOOK, PROBE, add, str(folder)) in (0, None)  # the command's exit code
     return sorted(path.name for path in (folder / "figures").iterdir())
 
 

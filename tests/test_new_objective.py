@@ -5,12 +5,9 @@ SafeTail its rows' name, preset and dispatch, follows the networks rule, and tra
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
-from source_addition import appended
+from source_addition import appended, run_probe
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 #: The class, added to the module's source as it is imported: nothing on disk changes.
@@ -66,10 +63,7 @@ print(json.dumps(report))
 
 
 def _probe(add: bool) -> dict[str, object]:
-    done = subprocess.run([sys.executable, "-c", f"ADD = {add}\n{HOOK}\n{PROBE}"], capture_output=True, text=True,
-                          cwd=REPOSITORY, timeout=300)
-    assert done.returncode == 0, done.stderr[-3000:]
-    result: dict[str, object] = json.loads(done.stdout.splitlines()[-1])
+    result: dict[str, object] = run_probe(HOOK, PROBE, add)
     return result
 
 

@@ -7,12 +7,9 @@ of the run id only when set.
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
-from source_addition import source_hook
+from source_addition import run_probe, source_hook
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 #: Adds the setting to the sources as they are imported: nothing on disk changes.
@@ -69,10 +66,7 @@ print(json.dumps(report))
 
 
 def _probe(add: bool) -> dict[str, object]:
-    done = subprocess.run([sys.executable, "-c", f"ADD = {add}\n{HOOK}\n{PROBE}"], capture_output=True, text=True,
-                          cwd=REPOSITORY, timeout=300)
-    assert done.returncode == 0, done.stderr[-3000:]
-    result: dict[str, object] = json.loads(done.stdout.splitlines()[-1])
+    result: dict[str, object] = run_probe(HOOK, PROBE, add)
     return result
 
 
