@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from yafs_safetail.results.files import REQUESTS_FILE, read_requests_csv
 from yafs_safetail.results.markdown import markdown_table
 
 #: Bootstrap resamples of every interval (a fixed generator: the same folders give the same page).
@@ -38,13 +39,13 @@ def scenario_requests(folder: Path, paper_world: bool) -> pd.DataFrame:
     """One seed's test requests of a scenario's run folder, every method's, as ``method,
     request, latency_s, servers, energy_j`` (a run's ``requests.csv`` test phase, or a sweep
     point's kept requests)."""
-    frame = pd.read_csv(folder / "requests.csv")
-    if paper_world:
+    if paper_world:  # a run's requests.csv, read through its checked reader
+        frame = read_requests_csv(folder)
         frame = frame[frame["phase"] == "test"]
         # "servers" there lists the servers chosen ("1;3"); here it counts them.
         frame = frame.drop(columns="servers").rename(columns={"request_id": "request", "n_selected": "servers"})
     else:
-        frame = frame.rename(columns={"n_copies": "servers"})
+        frame = pd.read_csv(folder / REQUESTS_FILE).rename(columns={"n_copies": "servers"})
     return frame[["method", "request", "latency_s", "servers", "energy_j"]].reset_index(drop=True)
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 from yafs_safetail.contention.world import ContentionError
 from yafs_safetail.logs import RUN_LOG_FILE, Phase, run_log
-from yafs_safetail.results.files import write_text_atomic
+from yafs_safetail.results.files import REQUESTS_FILE, write_text_atomic
 from yafs_safetail.runs.grid import ID_LENGTH, RunSpec, code_version, file_identity
 from yafs_safetail.runs.output import StagedOutput
 from yafs_safetail.runs.sweep import run_sweep
@@ -26,10 +26,9 @@ from yafs_safetail.runs.sweep_config import LOAD_POINT, POINT_KINDS, ContentionS
 log = logging.getLogger(__name__)
 
 #: A point setting (absent unless true, so other points keep their ids): keep the test requests
-#: one by one in the point's REQUESTS_FILE (method, request, latency_s, n_copies, energy_j), for
+#: one by one in the point's requests.csv (method, request, latency_s, n_copies, energy_j), for
 #: intervals paired by request (``yafs-safetail score``).
 PER_REQUEST = "per_request"
-REQUESTS_FILE = "requests.csv"
 
 
 def method_identity(spec: str) -> dict[str, str]:
