@@ -14,13 +14,13 @@ the figure is ``results.figures.score``.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from yafs_safetail.methods.registry import baselines_of
 from yafs_safetail.results.files import REQUESTS_FILE, read_requests_csv
 from yafs_safetail.results.markdown import markdown_table
 
@@ -29,8 +29,6 @@ RESAMPLES = 1000
 BOOTSTRAP_SEED = 20261128
 #: Resamples drawn at once (bounds the memory a large scenario takes).
 _CHUNK = 50
-#: The built-in methods the "best fixed method" is chosen from (the one with the lowest p99).
-FIXED = re.compile(r"^(Rand|MinLoad|MinProp)-\d+$")
 #: The figures whose ratios the report gives, with their intervals.
 RATIO_FIGURES = ("p50_s", "p99_s")
 
@@ -116,7 +114,7 @@ def paired_ratio(mine: Sequence[np.ndarray], theirs: Sequence[np.ndarray], figur
 
 
 def _best_fixed(figures: pd.DataFrame) -> str | None:
-    fixed = [method for method in figures.index if FIXED.match(method)]
+    fixed = baselines_of(figures.index)  # Rand-x, MinLoad-x, MinProp-x: the fixed methods
     return min(fixed, key=lambda method: (figures.loc[method, "p99_s"], method)) if fixed else None
 
 

@@ -132,9 +132,13 @@ def profile_settings(profile: ScoreProfile) -> dict[str, Any]:
     return {**asdict(profile), "seeds": list(profile.seeds)}
 
 
+#: Where a scenario's run of one seed goes, below the suite's folder.
+RUN_FOLDER = "{scenario}/seed{seed}"
+
+
 def run_folder(scenario: Scenario, seed: int) -> str:
-    """Where a scenario's run of one seed goes, below the suite's folder."""
-    return f"{scenario.name}/seed{seed}"
+    """:data:`RUN_FOLDER` for one scenario and seed."""
+    return RUN_FOLDER.format(scenario=scenario.name, seed=seed)
 
 
 def _paper_world_specs(scenario: Scenario, methods: list[str], profile: ScoreProfile) -> list[RunSpec]:
@@ -145,7 +149,7 @@ def _paper_world_specs(scenario: Scenario, methods: list[str], profile: ScorePro
     if scenario.walking:
         base.update(topology=str(CAMPUS_TOPOLOGY), mobility="random-waypoint",
                     speed_mps=list(MOBILITY_SPEEDS_MPS["walking"]))
-    return expand(base, {"seed": list(profile.seeds)}, name=f"{scenario.name}/seed{{seed}}",
+    return expand(base, {"seed": list(profile.seeds)}, name=RUN_FOLDER.replace("{scenario}", scenario.name),
                   source="score_policy.py")
 
 
