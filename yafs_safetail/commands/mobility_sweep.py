@@ -113,11 +113,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         named = SWEEP_RUN_FOLDER.replace("{speed}", speed)
         specs += expand({**base, "speed_mps": list(MOBILITY_SPEEDS_MPS[speed])}, {"seed": list(args.seeds)},
                         name=named, source="mobility_sweep.py")
-    first = make_config(specs[0], args.out / specs[0].name)
-    if args.traces_dir is not None:  # every trace file read and checked before the campaign starts
-        world_recipe(first)
-    if args.methods:  # each --method policy asked for its first request before the campaign starts
-        check_user_policies(first)
+    # Before the campaign starts: each --method policy asked for its first request (its world
+    # read, --traces' files with it), or else every --traces file read and checked.
+    if args.methods:
+        check_user_policies(make_config(specs[0], args.out / specs[0].name))
+    elif args.traces_dir is not None:
+        world_recipe(make_config(specs[0], args.out / specs[0].name))
     outcome = run_campaign(specs, args.out, command=command, **engine_keywords(args))
     if outcome.failed:
         print(f"error: {outcome.failed} run(s) failed (see above); no tables written; rerun the "
